@@ -1,0 +1,49 @@
+# Standalone build: the module's targets with plain CMake against an installed ITK.
+include(GNUInstallDirs)
+include(GenerateExportHeader)
+include(CMakePackageConfigHelpers)
+
+if(NOT CMAKE_BUILD_TYPE AND NOT CMAKE_CONFIGURATION_TYPES)
+  set(CMAKE_BUILD_TYPE Release CACHE STRING "Build type" FORCE)
+endif()
+set(CMAKE_CXX_STANDARD 17)
+set(CMAKE_CXX_STANDARD_REQUIRED ON)
+option(BUILD_SHARED_LIBS "Build the module library shared" ON)
+option(BUILD_TESTING "Build the tests" ON)
+option(DelaunayCompression_BUILD_BENCHMARKS "Build the benchmark programs" ON)
+
+# The IO modules make the CLI and the tests read NRRD, NIfTI, MetaImage and DICOM.
+set(DelaunayCompression_ITK_COMPONENTS
+  ITKCommon ITKMesh ITKIOImageBase ITKImageSources ITKTestKernel
+  ITKIONRRD ITKIONIFTI ITKIOMeta ITKIOGDCM)
+find_package(ITK 5.2 REQUIRED COMPONENTS ${DelaunayCompression_ITK_COMPONENTS})
+include(${ITK_USE_FILE})
+find_package(CGAL REQUIRED)
+
+set(CMAKE_INSTALL_RPATH "${CMAKE_INSTALL_FULL_LIBDIR}")
+set(CMAKE_INSTALL_RPATH_USE_LINK_PATH ON)
+
+add_subdirectory(src)
+add_subdirectory(cli)
+if(BUILD_TESTING)
+  enable_testing()
+  add_subdirectory(test)
+endif()
+if(DelaunayCompression_BUILD_BENCHMARKS)
+  add_subdirectory(benchmark)
+endif()
+
+# A CMake package, so that other projects can find_package(DelaunayCompression).
+install(DIRECTORY include/ DESTINATION ${CMAKE_INSTALL_INCLUDEDIR}/DelaunayCompression)
+install(FILES ${PROJECT_BINARY_DIR}/include/DelaunayCompressionExport.h
+        DESTINATION ${CMAKE_INSTALL_INCLUDEDIR}/DelaunayCompression)
+install(EXPORT DelaunayCompressionTargets NAMESPACE DelaunayCompression::
+        DESTINATION ${CMAKE_INSTALL_LIBDIR}/cmake/DelaunayCompression)
+configure_package_config_file(cmake/DelaunayCompressionConfig.cmake.in
+  ${PROJECT_BINARY_DIR}/DelaunayCompressionConfig.cmake
+  INSTALL_DESTINATION ${CMAKE_INSTALL_LIBDIR}/cmake/DelaunayCompression)
+write_basic_package_version_file(${PROJECT_BINARY_DIR}/DelaunayCompressionConfigVersion.cmake
+  COMPATIBILITY SameMinorVersion)
+install(FILES ${PROJECT_BINARY_DIR}/DelaunayCompressionConfig.cmake
+              ${PROJECT_BINARY_DIR}/DelaunayCompressionConfigVersion.cmake
+        DESTINATION ${CMAKE_INSTALL_LIBDIR}/cmake/DelaunayCompression)

@@ -1,0 +1,103 @@
+/*=========================================================================
+ *
+ *  Copyright NumFOCUS
+ *
+ *  Licensed under the Apache License, Version 2.0 (the "License");
+ *  you may not use this file except in compliance with the License.
+ *  You may obtain a copy of the License at
+ *
+ *         http://www.apache.org/licenses/LICENSE-2.0.txt
+ *
+ *  Unless required by applicable law or agreed to in writing, software
+ *  distributed under the License is distributed on an "AS IS" BASIS,
+ *  WITHOUT WARRANTIES OR CONDITIONS OF ANY KIND, either express or implied.
+ *  See the License for the specific language governing permissions and
+ *  limitations under the License.
+ *
+ *=========================================================================*/
+#ifndef dcvApproximation_h
+#define dcvApproximation_h
+
+#include "DelaunayCompressionExport.h"
+#include "dcvRasterizer.h"
+
+#include <array>
+#include <cstdint>
+#include <vector>
+
+/** \file dcvApproximation.h
+ * The product of the method: significant points (grid position and value) and the linear spline
+ * over their Delaunay tetrahedralization. Decoding is Tetrahedralize() followed by Rasterize().
+ * \ingroup DelaunayCompression
+ */
+namespace dcv
+{
+
+/** Four indices into the point list. */
+using Tetrahedron = std::array<uint32_t, 4>;
+
+/** Significant points and the tetrahedra over them, on a voxel grid. */
+struct Approximation
+{
+  GridSize                 grid;
+  std::vector<GridPoint>   points;
+  std::vector<double>      values;
+  std::vector<Tetrahedron> tetrahedra;
+};
+
+/** The Delaunay tetrahedralization of grid points (CGAL, exact predicates, symbolic perturbation):
+ * unique for a point set, so it equals the encoder's mesh whatever the insertion order.
+ * Throws std::invalid_argument on duplicate points. */
+DelaunayCompression_EXPORT std::vector<Tetrahedron>
+                           Tetrahedralize(const std::vector<GridPoint> & points);
+
+/** Checks that points lie on the grid and include its 8 corners; throws std::invalid_argument. */
+DelaunayCompression_EXPORT void
+CheckPoints(const GridSize & grid, const std::vector<GridPoint> & points);
+
+/** Rasterizes every tetrahedron into `out` (laid out as the grid; voxels no cell owns are left as
+ * they are). Cells own disjoint voxels, so the order does not matter. */
+template <typename T>
+void
+Rasterize(const Approximation & a, T * out)
+{
+  for (const Tetrahedron & t : a.tetrahedra)
+  {
+    RasterizeTetrahedron(a.grid,
+                         { a.points[t[0]], a.points[t[1]], a.points[t[2]], a.points[t[3]] },
+                         { a.values[t[0]], a.values[t[1]], a.values[t[2]], a.values[t[3]] },
+                         out);
+  }
+}
+
+/** Rebuilds the tetrahedra of an approximation from its points, then rasterizes it. */
+template <typename T>
+void
+Decode(Approximation & a, T * out)
+{
+  CheckPoints(a.grid, a.points);
+  a.tetrahedra = Tetrahedralize(a.points);
+  Rasterize(a, out);
+}
+
+/** Peak signal-to-noise ratio in dB: 10 log10(peak^2 / (squaredError / voxels)); +inf when exact. */
+DelaunayCompression_EXPORT double
+PSNR(double squaredError, uint64_t voxels, double peak);
+
+/** Sum of squared differences between two buffers of n values. */
+template <typename A, typename B>
+double
+SquaredError(const A * a, const B * b, uint64_t n)
+{
+  double s = 0.0;
+  for (uint64_t i = 0; i < n; ++i)
+  {
+    const double e = double(a[i]) - double(b[i]);
+    s += e * e;
+  }
+  return s;
+}
+
+} // namespace dcv
+
+#endif

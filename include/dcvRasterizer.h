@@ -1,0 +1,323 @@
+/*=========================================================================
+ *
+ *  Copyright NumFOCUS
+ *
+ *  Licensed under the Apache License, Version 2.0 (the "License");
+ *  you may not use this file except in compliance with the License.
+ *  You may obtain a copy of the License at
+ *
+ *         http://www.apache.org/licenses/LICENSE-2.0.txt
+ *
+ *  Unless required by applicable law or agreed to in writing, software
+ *  distributed under the License is distributed on an "AS IS" BASIS,
+ *  WITHOUT WARRANTIES OR CONDITIONS OF ANY KIND, either express or implied.
+ *  See the License for the specific language governing permissions and
+ *  limitations under the License.
+ *
+ *=========================================================================*/
+#ifndef dcvRasterizer_h
+#define dcvRasterizer_h
+
+#include <algorithm>
+#include <array>
+#include <cmath>
+#include <cstdint>
+#include <limits>
+#include <tuple>
+#include <type_traits>
+
+/** \file dcvRasterizer.h
+ * Exact scan conversion of a tetrahedron whose vertices lie on the voxel grid, and the linear
+ * (barycentric) interpolation of its vertex values. Header-only and free of ITK and CGAL, so the
+ * encoder, the decoder and the ITK filters share the very same arithmetic.
+ *
+ * Ownership rule: a voxel belongs to a cell when it lies strictly inside it. A voxel on a face, an
+ * edge or a vertex is decided as if it were moved by (sx e, sy e^2, sz e^3) for an infinitesimal e,
+ * with each sign pointing into the box (+ in the lower half of an axis, - in the upper half). The
+ * moved point lies on no plane, so for any tetrahedralization of the box every voxel has exactly
+ * one owner. All predicates are evaluated in 64-bit integers (coordinates < 2^16), hence exactly.
+ * \ingroup DelaunayCompression
+ */
+namespace dcv
+{
+
+/** Voxel grid extent: number of voxels along x, y, z (x varies fastest in memory). */
+struct GridSize
+{
+  int32_t x{ 0 };
+  int32_t y{ 0 };
+  int32_t z{ 0 };
+
+  uint64_t
+  NumberOfVoxels() const
+  {
+    return uint64_t(x) * uint64_t(y) * uint64_t(z);
+  }
+  uint64_t
+  Offset(int32_t i, int32_t j, int32_t k) const
+  {
+    return uint64_t(i) + uint64_t(x) * (uint64_t(j) + uint64_t(y) * uint64_t(k));
+  }
+};
+
+/** Largest grid extent along one axis: keeps every orientation determinant inside int64. */
+constexpr int32_t MaximumGridExtent = 65535;
+
+/** Integer grid coordinates of a point. */
+using GridPoint = std::array<int32_t, 3>;
+
+namespace detail
+{
+inline int64_t
+FloorDiv(int64_t a, int64_t b) // b > 0
+{
+  const int64_t q = a / b;
+  return (a % b != 0 && a < 0) ? q - 1 : q;
+}
+
+/** Sign of the perturbation along one axis for a voxel at coordinate c of an axis with n voxels. */
+inline int
+InwardSign(int64_t c, int64_t n)
+{
+  return 2 * c <= n - 1 ? 1 : -1;
+}
+} // namespace detail
+
+/** The four vertices of a tetrahedron sorted into a canonical order (by z, then y, then x), so
+ * that every computation on a cell is independent of the order its vertices were given in. */
+struct CanonicalTetrahedron
+{
+  std::array<GridPoint, 4> p;
+  std::array<double, 4>    v;
+
+  CanonicalTetrahedron(const std::array<GridPoint, 4> & points, const std::array<double, 4> & values)
+  {
+    std::array<int, 4> order{ 0, 1, 2, 3 };
+    std::sort(order.begin(), order.end(), [&points](int a, int b) {
+      const GridPoint & A = points[a];
+      const GridPoint & B = points[b];
+      return std::make_tuple(A[2], A[1], A[0]) < std::make_tuple(B[2], B[1], B[0]);
+    });
+    for (int i = 0; i < 4; ++i)
+    {
+      p[i] = points[order[i]];
+      v[i] = values[order[i]];
+    }
+  }
+};
+
+/** Six times the signed volume of the tetrahedron (exact). */
+inline int64_t
+SignedVolume6(const std::array<GridPoint, 4> & p)
+{
+  const int64_t ax = p[1][0] - p[0][0], ay = p[1][1] - p[0][1], az = p[1][2] - p[0][2];
+  const int64_t bx = p[2][0] - p[0][0], by = p[2][1] - p[0][1], bz = p[2][2] - p[0][2];
+  const int64_t cx = p[3][0] - p[0][0], cy = p[3][1] - p[0][1], cz = p[3][2] - p[0][2];
+  return ax * (by * cz - bz * cy) - ay * (bx * cz - bz * cx) + az * (bx * cy - by * cx);
+}
+
+/** Linear function over a tetrahedron: value(p) = v0 + g . (p - p0), with p0 the first canonical
+ * vertex. Built from the canonical order so encoder and decoder get identical doubles. */
+struct LinearFunction
+{
+  GridPoint origin{ 0, 0, 0 };
+  double    value0{ 0 };
+  double    gx{ 0 }, gy{ 0 }, gz{ 0 };
+
+  LinearFunction() = default;
+  explicit LinearFunction(const CanonicalTetrahedron & t)
+  {
+    origin = t.p[0];
+    value0 = t.v[0];
+    // Rows of M are the edge vectors from p0; g solves M g = dv, via the adjugate (exact integers).
+    int64_t m[3][3];
+    double  dv[3];
+    for (int r = 0; r < 3; ++r)
+    {
+      for (int c = 0; c < 3; ++c)
+      {
+        m[r][c] = int64_t(t.p[r + 1][c]) - t.p[0][c];
+      }
+      dv[r] = t.v[r + 1] - t.v[0];
+    }
+    int64_t adj[3][3]; // adjugate: inverse(M) = adj / det
+    adj[0][0] = m[1][1] * m[2][2] - m[1][2] * m[2][1];
+    adj[0][1] = m[0][2] * m[2][1] - m[0][1] * m[2][2];
+    adj[0][2] = m[0][1] * m[1][2] - m[0][2] * m[1][1];
+    adj[1][0] = m[1][2] * m[2][0] - m[1][0] * m[2][2];
+    adj[1][1] = m[0][0] * m[2][2] - m[0][2] * m[2][0];
+    adj[1][2] = m[0][2] * m[1][0] - m[0][0] * m[1][2];
+    adj[2][0] = m[1][0] * m[2][1] - m[1][1] * m[2][0];
+    adj[2][1] = m[0][1] * m[2][0] - m[0][0] * m[2][1];
+    adj[2][2] = m[0][0] * m[1][1] - m[0][1] * m[1][0];
+    const int64_t det = m[0][0] * adj[0][0] + m[0][1] * adj[1][0] + m[0][2] * adj[2][0];
+    if (det == 0)
+    {
+      return; // flat cell: owns no voxel, constant value
+    }
+    const double inv = 1.0 / double(det);
+    gx = (double(adj[0][0]) * dv[0] + double(adj[0][1]) * dv[1] + double(adj[0][2]) * dv[2]) * inv;
+    gy = (double(adj[1][0]) * dv[0] + double(adj[1][1]) * dv[1] + double(adj[1][2]) * dv[2]) * inv;
+    gz = (double(adj[2][0]) * dv[0] + double(adj[2][1]) * dv[1] + double(adj[2][2]) * dv[2]) * inv;
+  }
+
+  /** Value on row (y, z) is RowBase(y, z) + gx * (x - origin[0]). */
+  double
+  RowBase(int32_t y, int32_t z) const
+  {
+    return value0 + gy * double(y - origin[1]) + gz * double(z - origin[2]);
+  }
+  double
+  operator()(int32_t x, int32_t y, int32_t z) const
+  {
+    return RowBase(y, z) + gx * double(x - origin[0]);
+  }
+};
+
+/** Calls f(y, z, x0, x1) for every row of voxels [x0, x1] (inclusive) owned by the tetrahedron.
+ * Rows come in increasing z, then y. Flat tetrahedra own nothing. */
+template <typename TFunction>
+void
+ForEachSpan(const GridSize & grid, const std::array<GridPoint, 4> & p, TFunction && f)
+{
+  const int64_t vol6 = SignedVolume6(p);
+  if (vol6 == 0)
+  {
+    return;
+  }
+  // Face i is opposite vertex i; its plane function n.X + d is positive inside the cell.
+  int64_t n[4][3];
+  int64_t d[4];
+  static constexpr int faces[4][3] = { { 1, 2, 3 }, { 0, 2, 3 }, { 0, 1, 3 }, { 0, 1, 2 } };
+  for (int i = 0; i < 4; ++i)
+  {
+    const GridPoint & a = p[faces[i][0]];
+    const GridPoint & b = p[faces[i][1]];
+    const GridPoint & c = p[faces[i][2]];
+    const int64_t     ux = b[0] - a[0], uy = b[1] - a[1], uz = b[2] - a[2];
+    const int64_t     wx = c[0] - a[0], wy = c[1] - a[1], wz = c[2] - a[2];
+    int64_t           nx = uy * wz - uz * wy, ny = uz * wx - ux * wz, nz = ux * wy - uy * wx;
+    const GridPoint & s = p[i];
+    const int64_t     side = nx * (s[0] - a[0]) + ny * (s[1] - a[1]) + nz * (s[2] - a[2]);
+    if (side < 0)
+    {
+      nx = -nx;
+      ny = -ny;
+      nz = -nz;
+    }
+    n[i][0] = nx;
+    n[i][1] = ny;
+    n[i][2] = nz;
+    d[i] = -(nx * a[0] + ny * a[1] + nz * a[2]);
+  }
+  int32_t lo[3], hi[3];
+  for (int c = 0; c < 3; ++c)
+  {
+    lo[c] = std::min(std::min(p[0][c], p[1][c]), std::min(p[2][c], p[3][c]));
+    hi[c] = std::max(std::max(p[0][c], p[1][c]), std::max(p[2][c], p[3][c]));
+  }
+  lo[0] = std::max(lo[0], 0);
+  hi[0] = std::min(hi[0], grid.x - 1);
+  lo[1] = std::max(lo[1], 0);
+  hi[1] = std::min(hi[1], grid.y - 1);
+  lo[2] = std::max(lo[2], 0);
+  hi[2] = std::min(hi[2], grid.z - 1);
+  for (int32_t z = lo[2]; z <= hi[2]; ++z)
+  {
+    const int sz = detail::InwardSign(z, grid.z);
+    for (int32_t y = lo[1]; y <= hi[1]; ++y)
+    {
+      const int sy = detail::InwardSign(y, grid.y);
+      int64_t   x0 = lo[0];
+      int64_t   x1 = hi[0];
+      for (int i = 0; i < 4 && x0 <= x1; ++i)
+      {
+        const int64_t nx = n[i][0];
+        const int64_t C = n[i][1] * y + n[i][2] * z + d[i];
+        // Inside: nx * x + C > 0, or == 0 with a positive perturbation sign.
+        if (nx > 0)
+        {
+          // x > -C / nx; at equality the sign is that of sx * nx, i.e. sx.
+          const int64_t t = detail::FloorDiv(-C, nx);
+          const bool    exact = (t * nx == -C);
+          const int64_t first = (exact && detail::InwardSign(t, grid.x) > 0) ? t : t + 1;
+          x0 = std::max(x0, first);
+        }
+        else if (nx < 0)
+        {
+          // x < C / (-nx); at equality the sign is that of sx * nx, i.e. -sx.
+          const int64_t m = -nx;
+          const int64_t t = detail::FloorDiv(C, m);
+          const bool    exact = (t * m == C);
+          const int64_t last = exact ? (detail::InwardSign(t, grid.x) < 0 ? t : t - 1) : t;
+          x1 = std::min(x1, last);
+        }
+        else if (C < 0)
+        {
+          x1 = x0 - 1;
+        }
+        else if (C == 0)
+        {
+          // The whole row lies in the face plane: the first non-zero of (sy ny, sz nz) decides.
+          const int64_t s = n[i][1] != 0 ? sy * n[i][1] : sz * n[i][2];
+          if (s < 0)
+          {
+            x1 = x0 - 1;
+          }
+        }
+      }
+      if (x0 <= x1)
+      {
+        f(y, z, int32_t(x0), int32_t(x1));
+      }
+    }
+  }
+}
+
+/** Conversion of an interpolated value to a pixel type: round half up and clamp for integers. */
+template <typename T>
+inline T
+ConvertValue(double v)
+{
+  if constexpr (std::is_integral<T>::value)
+  {
+    const double r = std::floor(v + 0.5);
+    if (!(r >= double(std::numeric_limits<T>::lowest())))
+    {
+      return std::numeric_limits<T>::lowest();
+    }
+    if (r >= double(std::numeric_limits<T>::max()))
+    {
+      return std::numeric_limits<T>::max();
+    }
+    return static_cast<T>(r);
+  }
+  else
+  {
+    return static_cast<T>(v);
+  }
+}
+
+/** Writes the linear interpolation of one tetrahedron into a buffer laid out as the grid. */
+template <typename T>
+void
+RasterizeTetrahedron(const GridSize &                   grid,
+                     const std::array<GridPoint, 4> & points,
+                     const std::array<double, 4> &    values,
+                     T *                              out)
+{
+  const CanonicalTetrahedron t(points, values);
+  const LinearFunction       L(t);
+  ForEachSpan(grid, t.p, [&](int32_t y, int32_t z, int32_t x0, int32_t x1) {
+    const double base = L.RowBase(y, z);
+    T *          row = out + grid.Offset(0, y, z);
+    for (int32_t x = x0; x <= x1; ++x)
+    {
+      row[x] = ConvertValue<T>(base + L.gx * double(x - L.origin[0]));
+    }
+  });
+}
+
+} // namespace dcv
+
+#endif

@@ -1,0 +1,117 @@
+/*=========================================================================
+ *
+ *  Copyright NumFOCUS
+ *
+ *  Licensed under the Apache License, Version 2.0 (the "License");
+ *  you may not use this file except in compliance with the License.
+ *  You may obtain a copy of the License at
+ *
+ *         http://www.apache.org/licenses/LICENSE-2.0.txt
+ *
+ *  Unless required by applicable law or agreed to in writing, software
+ *  distributed under the License is distributed on an "AS IS" BASIS,
+ *  WITHOUT WARRANTIES OR CONDITIONS OF ANY KIND, either express or implied.
+ *  See the License for the specific language governing permissions and
+ *  limitations under the License.
+ *
+ *=========================================================================*/
+#ifndef itkDelaunayApproximationImageToMeshFilter_h
+#define itkDelaunayApproximationImageToMeshFilter_h
+
+#include "itkImageToMeshFilter.h"
+#include "itkTetrahedronCell.h"
+
+namespace itk
+{
+
+/** \class DelaunayApproximationImageToMeshFilter
+ * \brief Approximates a 3D image by a linear spline over an adaptive Delaunay tetrahedralization.
+ *
+ * The output is a tetrahedral mesh whose points are significant points of the image (grid
+ * positions, in physical coordinates) with the spline's values at them as point data. Rasterizing the
+ * mesh with TetrahedralMeshToImageFilter onto the input's grid gives the approximation; the points
+ * and values alone determine it, since their Delaunay tetrahedralization is unique.
+ *
+ * Method: Silva's greedy refinement extended to tetrahedra, as described in R. Jovanovic and
+ * R. A. Lorentz, "A combined image approach to compression of volumetric data using Delaunay
+ * tetrahedralization" (section 2): start from the 8 corners, then alternately insert the voxel of
+ * largest error and the worst voxel of the cell with the largest squared-error sum.
+ *
+ * Parameters:
+ * - NumberOfPoints (default 10000, at least 8): the number of significant points. Fewer are used
+ *   when the approximation becomes exact earlier.
+ *
+ * Results after Update(): GetSquaredError() (sum over voxels of the squared difference between the
+ * input and the unrounded spline) and GetMeanSquaredError().
+ *
+ * The input is any 3D scalar image; each axis needs 2 to 65535 voxels. Pixel values are handled as
+ * float. Progress events are sent during the refinement and AbortGenerateData() is honoured.
+ *
+ * \sa TetrahedralMeshToImageFilter
+ * \ingroup DelaunayCompression
+ */
+template <typename TInputImage, typename TOutputMesh>
+class ITK_TEMPLATE_EXPORT DelaunayApproximationImageToMeshFilter : public ImageToMeshFilter<TInputImage, TOutputMesh>
+{
+public:
+  ITK_DISALLOW_COPY_AND_MOVE(DelaunayApproximationImageToMeshFilter);
+
+  using Self = DelaunayApproximationImageToMeshFilter;
+  using Superclass = ImageToMeshFilter<TInputImage, TOutputMesh>;
+  using Pointer = SmartPointer<Self>;
+  using ConstPointer = SmartPointer<const Self>;
+
+  itkNewMacro(Self);
+  itkTypeMacro(DelaunayApproximationImageToMeshFilter, ImageToMeshFilter);
+
+  using InputImageType = TInputImage;
+  using InputPixelType = typename InputImageType::PixelType;
+  using OutputMeshType = TOutputMesh;
+  using OutputPixelType = typename OutputMeshType::PixelType;
+  using CellType = typename OutputMeshType::CellType;
+  using TetrahedronCellType = TetrahedronCell<CellType>;
+
+  static constexpr unsigned int ImageDimension = InputImageType::ImageDimension;
+  static_assert(ImageDimension == 3, "DelaunayApproximationImageToMeshFilter needs a 3D image");
+  static_assert(OutputMeshType::PointDimension == 3, "DelaunayApproximationImageToMeshFilter needs a 3D mesh");
+
+  /** Number of significant points (default 10000, at least 8: the corners). */
+  itkSetClampMacro(NumberOfPoints, SizeValueType, 8, NumericTraits<SizeValueType>::max());
+  itkGetConstMacro(NumberOfPoints, SizeValueType);
+
+  /** Sum of squared errors of the approximation, after Update(). */
+  itkGetConstMacro(SquaredError, double);
+  /** Mean squared error of the approximation, after Update(). */
+  itkGetConstMacro(MeanSquaredError, double);
+
+protected:
+  DelaunayApproximationImageToMeshFilter();
+  ~DelaunayApproximationImageToMeshFilter() override = default;
+
+  void
+  PrintSelf(std::ostream & os, Indent indent) const override;
+
+  void
+  GenerateInputRequestedRegion() override;
+
+  /** Nothing to do: the mesh's extent is only known once the data are generated. */
+  void
+  GenerateOutputInformation() override
+  {}
+
+  void
+  GenerateData() override;
+
+private:
+  SizeValueType m_NumberOfPoints{ 10000 };
+  double        m_SquaredError{ 0.0 };
+  double        m_MeanSquaredError{ 0.0 };
+};
+
+} // namespace itk
+
+#ifndef ITK_MANUAL_INSTANTIATION
+#  include "itkDelaunayApproximationImageToMeshFilter.hxx"
+#endif
+
+#endif

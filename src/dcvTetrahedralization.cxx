@@ -1,0 +1,272 @@
+/*=========================================================================
+ *
+ *  Copyright NumFOCUS
+ *
+ *  Licensed under the Apache License, Version 2.0 (the "License");
+ *  you may not use this file except in compliance with the License.
+ *  You may obtain a copy of the License at
+ *
+ *         http://www.apache.org/licenses/LICENSE-2.0.txt
+ *
+ *  Unless required by applicable law or agreed to in writing, software
+ *  distributed under the License is distributed on an "AS IS" BASIS,
+ *  WITHOUT WARRANTIES OR CONDITIONS OF ANY KIND, either express or implied.
+ *  See the License for the specific language governing permissions and
+ *  limitations under the License.
+ *
+ *=========================================================================*/
+#include "dcvTetrahedralization.h"
+
+#include <CGAL/Delaunay_triangulation_3.h>
+#include <CGAL/Delaunay_triangulation_cell_base_3.h>
+#include <CGAL/Exact_predicates_inexact_constructions_kernel.h>
+#include <CGAL/Triangulation_cell_base_with_info_3.h>
+#include <CGAL/Triangulation_vertex_base_with_info_3.h>
+
+#include <stdexcept>
+
+namespace dcv
+{
+namespace
+{
+// Integer coordinates below 2^16 are exact in doubles, and the kernel's predicates are exact.
+using Kernel = CGAL::Exact_predicates_inexact_constructions_kernel;
+using VertexBase = CGAL::Triangulation_vertex_base_with_info_3<Tetrahedralization::VertexId, Kernel>;
+// CGAL default-initializes the info of the cells it creates: give the identifier a safe default.
+struct CellInfo
+{
+  Tetrahedralization::CellId id{ Tetrahedralization::NoCell };
+};
+using CellBase =
+  CGAL::Triangulation_cell_base_with_info_3<CellInfo, Kernel, CGAL::Delaunay_triangulation_cell_base_3<Kernel>>;
+using DataStructure = CGAL::Triangulation_data_structure_3<VertexBase, CellBase, CGAL::Sequential_tag>;
+using Delaunay = CGAL::Delaunay_triangulation_3<Kernel, DataStructure>;
+using CellHandle = Delaunay::Cell_handle;
+using VertexHandle = Delaunay::Vertex_handle;
+using CgalPoint = Kernel::Point_3;
+
+CgalPoint
+ToCgal(const GridPoint & p)
+{
+  return CgalPoint(p[0], p[1], p[2]);
+}
+} // namespace
+
+struct Tetrahedralization::Impl
+{
+  Delaunay                  dt;
+  std::vector<GridPoint>    points;   // by vertex id
+  std::vector<VertexHandle> vertices; // by vertex id (null once removed)
+  std::vector<CellHandle>   cells;    // by cell id (stale once the cell died)
+  std::vector<CellHandle>   scratch;
+
+  // Gives ids to the new finite cells and reports them.
+  void
+  Register(CellHandle c, std::vector<Cell> * created)
+  {
+    if (dt.is_infinite(c))
+    {
+      c->info().id = NoCell;
+      return;
+    }
+    const CellId id = CellId(cells.size());
+    if (id == NoCell)
+    {
+      throw std::length_error("Tetrahedralization: too many cells");
+    }
+    c->info().id = id;
+    cells.push_back(c);
+    if (created)
+    {
+      created->push_back(Cell{ id, { c->vertex(0)->info(), c->vertex(1)->info(), c->vertex(2)->info(), c->vertex(3)->info() } });
+    }
+  }
+
+  // Re-numbers every finite cell (after operations whose new cells CGAL does not report).
+  void
+  RegisterAll()
+  {
+    for (auto c = dt.all_cells_begin(); c != dt.all_cells_end(); ++c)
+    {
+      Register(c, nullptr);
+    }
+  }
+};
+
+Tetrahedralization::Tetrahedralization()
+  : m_Impl(std::make_unique<Impl>())
+{}
+
+Tetrahedralization::~Tetrahedralization() = default;
+
+void
+Tetrahedralization::InsertMany(const std::vector<GridPoint> & points)
+{
+  Impl &                                           d = *m_Impl;
+  std::vector<std::pair<CgalPoint, VertexId>>      input;
+  input.reserve(points.size());
+  const VertexId first = VertexId(d.points.size());
+  for (std::size_t i = 0; i < points.size(); ++i)
+  {
+    input.emplace_back(ToCgal(points[i]), first + VertexId(i));
+    d.points.push_back(points[i]);
+  }
+  d.vertices.resize(d.points.size());
+  // The range insertion sorts spatially (fast) and keeps the info of each point.
+  const std::size_t before = d.dt.number_of_vertices();
+  d.dt.insert(input.begin(), input.end());
+  if (d.dt.number_of_vertices() - before != points.size())
+  {
+    throw std::invalid_argument("Tetrahedralization: duplicate points");
+  }
+  for (auto v = d.dt.finite_vertices_begin(); v != d.dt.finite_vertices_end(); ++v)
+  {
+    d.vertices[v->info()] = v;
+  }
+  d.RegisterAll();
+}
+
+Tetrahedralization::VertexId
+Tetrahedralization::Insert(const GridPoint & p, CellId hint, std::vector<CellId> & killed, std::vector<Cell> & created)
+{
+  Impl & d = *m_Impl;
+  killed.clear();
+  created.clear();
+  const VertexId id = VertexId(d.points.size());
+  const CgalPoint q = ToCgal(p);
+  if (d.dt.dimension() < 3)
+  {
+    // Lower-dimensional start (the first corners): let CGAL build it and number what exists.
+    VertexHandle v = d.dt.insert(q);
+    v->info() = id;
+    d.points.push_back(p);
+    d.vertices.push_back(v);
+    if (d.dt.dimension() == 3)
+    {
+      for (auto c = d.dt.all_cells_begin(); c != d.dt.all_cells_end(); ++c)
+      {
+        d.Register(c, &created);
+      }
+    }
+    return id;
+  }
+  Delaunay::Locate_type lt;
+  int                   li = 0, lj = 0;
+  const CellHandle      start = (hint != NoCell && hint < d.cells.size()) ? d.cells[hint] : CellHandle();
+  const CellHandle      c = d.dt.locate(q, lt, li, lj, start);
+  if (lt == Delaunay::VERTEX)
+  {
+    throw std::logic_error("Tetrahedralization: point is already a vertex");
+  }
+  // The located cell contains q, so it is in conflict with it (Delaunay insertion, as CGAL does).
+  d.scratch.clear();
+  Delaunay::Facet facet;
+  d.dt.find_conflicts(q, c, CGAL::Oneset_iterator<Delaunay::Facet>(facet), std::back_inserter(d.scratch));
+  for (const CellHandle & dead : d.scratch)
+  {
+    if (dead->info().id != NoCell)
+    {
+      killed.push_back(dead->info().id);
+    }
+  }
+  VertexHandle v = d.dt.insert_in_hole(q, d.scratch.begin(), d.scratch.end(), facet.first, facet.second);
+  v->info() = id;
+  d.points.push_back(p);
+  d.vertices.push_back(v);
+  d.scratch.clear();
+  d.dt.incident_cells(v, std::back_inserter(d.scratch));
+  for (const CellHandle & nc : d.scratch)
+  {
+    d.Register(nc, &created);
+  }
+  return id;
+}
+
+void
+Tetrahedralization::Remove(VertexId id, std::vector<CellId> & killed, std::vector<Cell> & created)
+{
+  Impl & d = *m_Impl;
+  killed.clear();
+  created.clear();
+  if (id >= d.vertices.size() || d.vertices[id] == VertexHandle())
+  {
+    throw std::logic_error("Tetrahedralization: no such vertex");
+  }
+  VertexHandle v = d.vertices[id];
+  d.scratch.clear();
+  d.dt.incident_cells(v, std::back_inserter(d.scratch));
+  for (const CellHandle & dead : d.scratch)
+  {
+    if (dead->info().id != NoCell)
+    {
+      killed.push_back(dead->info().id);
+    }
+  }
+  d.scratch.clear();
+  d.dt.remove_and_give_new_cells(v, std::back_inserter(d.scratch));
+  d.vertices[id] = VertexHandle();
+  for (const CellHandle & nc : d.scratch)
+  {
+    d.Register(nc, &created);
+  }
+}
+
+void
+Tetrahedralization::IncidentCells(VertexId id, std::vector<CellId> & out) const
+{
+  Impl & d = *m_Impl;
+  out.clear();
+  d.scratch.clear();
+  d.dt.incident_cells(d.vertices.at(id), std::back_inserter(d.scratch));
+  for (const CellHandle & c : d.scratch)
+  {
+    if (c->info().id != NoCell)
+    {
+      out.push_back(c->info().id);
+    }
+  }
+}
+
+std::vector<Tetrahedralization::Cell>
+Tetrahedralization::FiniteCells() const
+{
+  std::vector<Cell> out;
+  out.reserve(m_Impl->dt.number_of_finite_cells());
+  for (auto c = m_Impl->dt.finite_cells_begin(); c != m_Impl->dt.finite_cells_end(); ++c)
+  {
+    out.push_back(Cell{ c->info().id, { c->vertex(0)->info(), c->vertex(1)->info(), c->vertex(2)->info(), c->vertex(3)->info() } });
+  }
+  return out;
+}
+
+const GridPoint &
+Tetrahedralization::Point(VertexId v) const
+{
+  return m_Impl->points.at(v);
+}
+
+Tetrahedralization::VertexId
+Tetrahedralization::NumberOfVertexIds() const
+{
+  return VertexId(m_Impl->points.size());
+}
+
+std::size_t
+Tetrahedralization::NumberOfVertices() const
+{
+  return m_Impl->dt.number_of_vertices();
+}
+
+std::size_t
+Tetrahedralization::NumberOfFiniteCells() const
+{
+  return m_Impl->dt.number_of_finite_cells();
+}
+
+bool
+Tetrahedralization::IsValid() const
+{
+  return m_Impl->dt.is_valid();
+}
+
+} // namespace dcv
