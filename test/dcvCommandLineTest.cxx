@@ -1,0 +1,251 @@
+/*=========================================================================
+ *
+ *  Copyright NumFOCUS
+ *
+ *  Licensed under the Apache License, Version 2.0 (the "License");
+ *  you may not use this file except in compliance with the License.
+ *  You may obtain a copy of the License at
+ *
+ *         http://www.apache.org/licenses/LICENSE-2.0.txt
+ *
+ *  Unless required by applicable law or agreed to in writing, software
+ *  distributed under the License is distributed on an "AS IS" BASIS,
+ *  WITHOUT WARRANTIES OR CONDITIONS OF ANY KIND, either express or implied.
+ *  See the License for the specific language governing permissions and
+ *  limitations under the License.
+ *
+ *=========================================================================*/
+// dcv on the command line: the demo path, and a clear error with a non-zero exit for each bad input.
+#include "dcvTestUtilities.h"
+
+#include "itkImageFileWriter.h"
+#include "itkVectorImage.h"
+
+#include <fstream>
+#include <sys/wait.h>
+
+namespace
+{
+namespace fs = std::filesystem;
+
+struct Result
+{
+  int         status;
+  std::string output; // stdout and stderr
+};
+
+Result
+RunDcv(const std::string & arguments)
+{
+  const std::string command = std::string(DCV_EXECUTABLE) + " " + arguments + " 2>&1";
+  FILE *            pipe = ::popen(command.c_str(), "r");
+  Result            r{ -1, "" };
+  if (!pipe)
+    return r;
+  char buffer[4096];
+  while (std::size_t n = std::fread(buffer, 1, sizeof(buffer), pipe))
+    r.output.append(buffer, n);
+  const int status = ::pclose(pipe);
+  r.status = WIFEXITED(status) ? WEXITSTATUS(status) : 128 + WTERMSIG(status);
+  return r;
+}
+
+class CommandLine : public ::testing::Test
+{
+protected:
+  void
+  SetUp() override
+  {
+    m_Directory = fs::temp_directory_path() /
+                  ("dcv-cli-" + std::to_string(::getpid()) + "-" +
+                   ::testing::UnitTest::GetInstance()->current_test_info()->name());
+    fs::remove_all(m_Directory);
+    fs::create_directories(m_Directory);
+  }
+  void
+  TearDown() override
+  {
+    fs::remove_all(m_Directory);
+  }
+  std::string
+  Path(const std::string & name) const
+  {
+    return (m_Directory / name).string();
+  }
+  template <typename TImage>
+  std::string
+  Write(typename TImage::Pointer image, const std::string & name)
+  {
+    auto writer = itk::ImageFileWriter<TImage>::New();
+    writer->SetInput(image);
+    writer->SetFileName(Path(name));
+    writer->Update();
+    return Path(name);
+  }
+  template <unsigned int D>
+  std::string
+  WriteScalar(const std::string & name, unsigned int n)
+  {
+    using ImageType = itk::Image<uint8_t, D>;
+    auto                         image = ImageType::New();
+    typename ImageType::SizeType size;
+    size.Fill(n);
+    image->SetRegions(size);
+    image->Allocate(true);
+    return Write<ImageType>(image, name);
+  }
+  fs::path m_Directory;
+};
+
+TEST_F(CommandLine, HelpDescribesTheCommands)
+{
+  const Result r = RunDcv("--help");
+  EXPECT_EQ(r.status, 0);
+  EXPECT_NE(r.output.find("approximate"), std::string::npos) << r.output;
+  EXPECT_NE(r.output.find("phantom"), std::string::npos) << r.output;
+  const Result a = RunDcv("approximate --help");
+  EXPECT_EQ(a.status, 0);
+  EXPECT_NE(a.output.find("--points"), std::string::npos) << a.output;
+  EXPECT_NE(a.output.find("--force"), std::string::npos) << a.output;
+}
+
+TEST_F(CommandLine, PhantomThenApproximate)
+{
+  const std::string phantom = Path("phantom.nrrd");
+  const std::string output = Path("approximation.nrrd");
+  Result            r = RunDcv("phantom " + phantom + " --size 32");
+  ASSERT_EQ(r.status, 0) << r.output;
+  r = RunDcv("approximate " + phantom + " " + output + " --points 500");
+  ASSERT_EQ(r.status, 0) << r.output;
+  EXPECT_NE(r.output.find("points: 500"), std::string::npos) << r.output;
+  EXPECT_NE(r.output.find("PSNR: "), std::string::npos) << r.output;
+  EXPECT_NE(r.output.find("seconds: "), std::string::npos) << r.output;
+
+  // The output has the input's geometry and pixel type, and the PSNR printed is the one it has.
+  using ImageType = itk::Image<uint8_t, 3>;
+  auto in = itk::ReadImage<ImageType>(phantom);
+  auto reader = itk::ImageFileReader<ImageType>::New();
+  reader->SetFileName(output);
+  reader->Update();
+  EXPECT_EQ(reader->GetImageIO()->GetComponentType(), itk::IOComponentEnum::UCHAR);
+  auto out = reader->GetOutput();
+  EXPECT_EQ(out->GetLargestPossibleRegion(), in->GetLargestPossibleRegion());
+  const auto   n = in->GetLargestPossibleRegion().GetNumberOfPixels();
+  const double psnr = dcv::PSNR(dcv::SquaredError(in->GetBufferPointer(), out->GetBufferPointer(), n), n, 255.0);
+  const double printed = std::stod(r.output.substr(r.output.find("PSNR: ") + 6));
+  EXPECT_NEAR(printed, psnr, 1e-3);
+  EXPECT_GT(psnr, 15.0);
+}
+
+TEST_F(CommandLine, MissingInput)
+{
+  const Result r = RunDcv("approximate " + Path("nothing.nrrd") + " " + Path("out.nrrd"));
+  EXPECT_NE(r.status, 0);
+  EXPECT_NE(r.output.find("nothing.nrrd"), std::string::npos) << r.output;
+  EXPECT_NE(r.output.find("no such file"), std::string::npos) << r.output;
+  EXPECT_FALSE(fs::exists(Path("out.nrrd")));
+}
+
+TEST_F(CommandLine, NotAnImage)
+{
+  std::ofstream(Path("text.nrrd")) << "this is not a volume\n";
+  const Result r = RunDcv("approximate " + Path("text.nrrd") + " " + Path("out.nrrd"));
+  EXPECT_NE(r.status, 0);
+  EXPECT_NE(r.output.find("text.nrrd"), std::string::npos) << r.output;
+  EXPECT_FALSE(fs::exists(Path("out.nrrd")));
+}
+
+TEST_F(CommandLine, TwoDimensionalImage)
+{
+  const std::string input = WriteScalar<2>("slice.nrrd", 16);
+  const Result      r = RunDcv("approximate " + input + " " + Path("out.nrrd"));
+  EXPECT_NE(r.status, 0);
+  EXPECT_NE(r.output.find("is a 2D image"), std::string::npos) << r.output;
+  EXPECT_NE(r.output.find("slice.nrrd"), std::string::npos) << r.output;
+}
+
+TEST_F(CommandLine, FourDimensionalImage)
+{
+  const std::string input = WriteScalar<4>("series.nrrd", 4);
+  const Result      r = RunDcv("approximate " + input + " " + Path("out.nrrd"));
+  EXPECT_NE(r.status, 0);
+  EXPECT_NE(r.output.find("is a 4D image"), std::string::npos) << r.output;
+}
+
+TEST_F(CommandLine, FlatVolume)
+{
+  using ImageType = itk::Image<uint8_t, 3>;
+  auto                image = ImageType::New();
+  ImageType::SizeType size{ { 8, 8, 1 } };
+  image->SetRegions(size);
+  image->Allocate(true);
+  const std::string input = Write<ImageType>(image, "flat.nrrd");
+  const Result      r = RunDcv("approximate " + input + " " + Path("out.nrrd"));
+  EXPECT_NE(r.status, 0);
+  EXPECT_NE(r.output.find("at least 2 voxels along each axis"), std::string::npos) << r.output;
+}
+
+TEST_F(CommandLine, VectorPixels)
+{
+  using ImageType = itk::VectorImage<float, 3>;
+  auto                image = ImageType::New();
+  ImageType::SizeType size{ { 4, 4, 4 } };
+  image->SetRegions(size);
+  image->SetNumberOfComponentsPerPixel(3);
+  image->Allocate(true);
+  const std::string input = Write<ImageType>(image, "vectors.nrrd");
+  const Result      r = RunDcv("approximate " + input + " " + Path("out.nrrd"));
+  EXPECT_NE(r.status, 0);
+  EXPECT_NE(r.output.find("3 components per voxel"), std::string::npos) << r.output;
+  EXPECT_NE(r.output.find("scalar volume"), std::string::npos) << r.output;
+}
+
+TEST_F(CommandLine, TooFewPoints)
+{
+  const std::string input = WriteScalar<3>("volume.nrrd", 8);
+  const Result      r = RunDcv("approximate " + input + " " + Path("out.nrrd") + " --points 7");
+  EXPECT_NE(r.status, 0);
+  EXPECT_NE(r.output.find("--points must be at least 8"), std::string::npos) << r.output;
+  EXPECT_FALSE(fs::exists(Path("out.nrrd")));
+}
+
+TEST_F(CommandLine, ExistingOutputNeedsForce)
+{
+  const std::string input = WriteScalar<3>("volume.nrrd", 8);
+  const std::string output = Path("precious.nrrd");
+  std::ofstream(output) << "keep me";
+  Result r = RunDcv("approximate " + input + " " + output + " --points 20");
+  EXPECT_NE(r.status, 0);
+  EXPECT_NE(r.output.find("already exists"), std::string::npos) << r.output;
+  std::ifstream     kept(output);
+  const std::string content((std::istreambuf_iterator<char>(kept)), std::istreambuf_iterator<char>());
+  EXPECT_EQ(content, "keep me");
+
+  r = RunDcv("approximate " + input + " " + output + " --points 20 --force");
+  EXPECT_EQ(r.status, 0) << r.output;
+  using ImageType = itk::Image<uint8_t, 3>;
+  EXPECT_NO_THROW(itk::ReadImage<ImageType>(output));
+}
+
+TEST_F(CommandLine, UnknownOutputFormat)
+{
+  const std::string input = WriteScalar<3>("volume.nrrd", 8);
+  const Result      r = RunDcv("approximate " + input + " " + Path("out.unknown"));
+  EXPECT_NE(r.status, 0);
+  EXPECT_NE(r.output.find("no image format"), std::string::npos) << r.output;
+}
+
+TEST_F(CommandLine, ApproximatesRealCTWithItsPixelType)
+{
+  DCV_REQUIRE_DATA("headsq-ct.nrrd");
+  const std::string output = Path("ct.nii.gz");
+  const Result      r = RunDcv("approximate " + dcv::test::DataFile("headsq-ct.nrrd") + " " + output + " -n 2000");
+  ASSERT_EQ(r.status, 0) << r.output;
+  auto reader = itk::ImageFileReader<itk::Image<int16_t, 3>>::New();
+  reader->SetFileName(output);
+  reader->Update();
+  EXPECT_EQ(reader->GetImageIO()->GetComponentType(), itk::IOComponentEnum::SHORT);
+  EXPECT_EQ(reader->GetOutput()->GetLargestPossibleRegion().GetSize(), (itk::Size<3>{ { 64, 64, 93 } }));
+}
+
+} // namespace

@@ -1,0 +1,119 @@
+/*=========================================================================
+ *
+ *  Copyright NumFOCUS
+ *
+ *  Licensed under the Apache License, Version 2.0 (the "License");
+ *  you may not use this file except in compliance with the License.
+ *  You may obtain a copy of the License at
+ *
+ *         http://www.apache.org/licenses/LICENSE-2.0.txt
+ *
+ *  Unless required by applicable law or agreed to in writing, software
+ *  distributed under the License is distributed on an "AS IS" BASIS,
+ *  WITHOUT WARRANTIES OR CONDITIONS OF ANY KIND, either express or implied.
+ *  See the License for the specific language governing permissions and
+ *  limitations under the License.
+ *
+ *=========================================================================*/
+#ifndef dcvTestUtilities_h
+#define dcvTestUtilities_h
+
+#include "dcvApproximation.h"
+
+#include "itkImageFileReader.h"
+
+#include <gtest/gtest.h>
+
+#include <algorithm>
+#include <filesystem>
+#include <numeric>
+#include <random>
+#include <string>
+
+namespace dcv::test
+{
+
+/** A real volume of ../shared/data as floats, with its PSNR peak. */
+struct Volume
+{
+  GridSize           grid;
+  std::vector<float> voxels;
+  double             peak{ 255.0 };
+};
+
+inline std::string
+DataFile(const std::string & name)
+{
+  return std::string(DCV_DATA_DIR) + "/" + name;
+}
+
+inline bool
+HaveData(const std::string & name)
+{
+  return std::filesystem::exists(DataFile(name));
+}
+
+/** Skips the calling test, with the reason, when a shared volume is not there. */
+#define DCV_REQUIRE_DATA(name)                                                                                     \
+  if (!dcv::test::HaveData(name))                                                                               \
+  {                                                                                                                \
+    GTEST_SKIP() << "needs " << dcv::test::DataFile(name) << " (../shared/data is absent)";                     \
+  }
+
+inline Volume
+ReadVolume(const std::string & name)
+{
+  using ImageType = itk::Image<float, 3>;
+  auto reader = itk::ImageFileReader<ImageType>::New();
+  reader->SetFileName(DataFile(name));
+  reader->Update();
+  const auto * image = reader->GetOutput();
+  const auto   size = image->GetLargestPossibleRegion().GetSize();
+  Volume       v;
+  v.grid = GridSize{ int32_t(size[0]), int32_t(size[1]), int32_t(size[2]) };
+  v.voxels.assign(image->GetBufferPointer(), image->GetBufferPointer() + v.grid.NumberOfVoxels());
+  const auto range = std::minmax_element(v.voxels.begin(), v.voxels.end());
+  const bool eightBit = reader->GetImageIO()->GetComponentSize() == 1;
+  v.peak = eightBit ? 255.0 : double(*range.second - *range.first);
+  return v;
+}
+
+/** The 8 corners of a grid. */
+inline std::vector<GridPoint>
+Corners(const GridSize & g)
+{
+  std::vector<GridPoint> out;
+  for (int k = 0; k < 8; ++k)
+  {
+    out.push_back({ (k & 1) ? g.x - 1 : 0, (k & 2) ? g.y - 1 : 0, (k & 4) ? g.z - 1 : 0 });
+  }
+  return out;
+}
+
+/** Corners plus `n` distinct random grid points. */
+inline std::vector<GridPoint>
+RandomPoints(const GridSize & g, std::size_t n, unsigned seed)
+{
+  std::vector<GridPoint> out = Corners(g);
+  std::mt19937           random(seed);
+  std::vector<char>      used(g.NumberOfVoxels(), 0);
+  for (const auto & p : out)
+  {
+    used[g.Offset(p[0], p[1], p[2])] = 1;
+  }
+  while (out.size() < n + 8 && out.size() < g.NumberOfVoxels())
+  {
+    const GridPoint p{ int32_t(random() % g.x), int32_t(random() % g.y), int32_t(random() % g.z) };
+    char &          u = used[g.Offset(p[0], p[1], p[2])];
+    if (!u)
+    {
+      u = 1;
+      out.push_back(p);
+    }
+  }
+  return out;
+}
+
+} // namespace dcv::test
+
+#endif

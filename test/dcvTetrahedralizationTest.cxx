@@ -1,0 +1,132 @@
+/*=========================================================================
+ *
+ *  Copyright NumFOCUS
+ *
+ *  Licensed under the Apache License, Version 2.0 (the "License");
+ *  you may not use this file except in compliance with the License.
+ *  You may obtain a copy of the License at
+ *
+ *         http://www.apache.org/licenses/LICENSE-2.0.txt
+ *
+ *  Unless required by applicable law or agreed to in writing, software
+ *  distributed under the License is distributed on an "AS IS" BASIS,
+ *  WITHOUT WARRANTIES OR CONDITIONS OF ANY KIND, either express or implied.
+ *  See the License for the specific language governing permissions and
+ *  limitations under the License.
+ *
+ *=========================================================================*/
+// The decoder relies on the Delaunay tetrahedralization of a grid point set being unique.
+#include "dcvTestUtilities.h"
+#include "dcvTetrahedralization.h"
+
+#include <set>
+
+namespace
+{
+using namespace dcv;
+using CellSet = std::set<std::array<GridPoint, 4>>;
+
+/** Cells as sorted vertex positions: comparable across point orders. */
+CellSet
+Cells(const std::vector<GridPoint> & points, const std::vector<Tetrahedron> & tets)
+{
+  CellSet out;
+  for (const auto & t : tets)
+  {
+    std::array<GridPoint, 4> c{ points[t[0]], points[t[1]], points[t[2]], points[t[3]] };
+    std::sort(c.begin(), c.end());
+    out.insert(c);
+  }
+  return out;
+}
+
+TEST(Tetrahedralization, UniqueWhateverTheInsertionOrder)
+{
+  const GridSize         grid{ 16, 16, 16 };
+  std::vector<GridPoint> points = test::RandomPoints(grid, 600, 7);
+  const CellSet          reference = Cells(points, Tetrahedralize(points));
+  std::mt19937           random(3);
+  for (int order = 0; order < 10; ++order)
+  {
+    std::shuffle(points.begin(), points.end(), random);
+    EXPECT_EQ(Cells(points, Tetrahedralize(points)), reference) << "order " << order;
+  }
+}
+
+TEST(Tetrahedralization, IncrementalInsertionReportsTheCavity)
+{
+  const GridSize               grid{ 12, 10, 9 };
+  const std::vector<GridPoint> points = test::RandomPoints(grid, 150, 11);
+  Tetrahedralization           mesh;
+  std::vector<uint32_t>        killed;
+  std::vector<Tetrahedralization::Cell> created;
+  std::set<uint32_t>                    alive;
+  for (const GridPoint & p : points)
+  {
+    mesh.Insert(p, Tetrahedralization::NoCell, killed, created);
+    for (auto k : killed)
+    {
+      ASSERT_EQ(alive.erase(k), 1u) << "a dead cell was not alive";
+    }
+    for (const auto & c : created)
+    {
+      ASSERT_TRUE(alive.insert(c.id).second) << "a cell identifier was reused";
+    }
+  }
+  ASSERT_TRUE(mesh.IsValid());
+  // What the reports left alive is exactly the set of finite cells.
+  std::set<uint32_t> finite;
+  for (const auto & c : mesh.FiniteCells())
+  {
+    finite.insert(c.id);
+  }
+  EXPECT_EQ(alive, finite);
+  // And it equals the bulk build of the same points.
+  std::vector<Tetrahedron> incremental;
+  for (const auto & c : mesh.FiniteCells())
+  {
+    incremental.push_back(c.vertices);
+  }
+  EXPECT_EQ(Cells(points, incremental), Cells(points, Tetrahedralize(points)));
+}
+
+TEST(Tetrahedralization, RemovalGivesTheTetrahedralizationOfTheRest)
+{
+  const GridSize         grid{ 16, 16, 16 };
+  std::vector<GridPoint> points = test::RandomPoints(grid, 400, 5);
+  Tetrahedralization     mesh;
+  mesh.InsertMany(points);
+  std::vector<uint32_t>                 killed;
+  std::vector<Tetrahedralization::Cell> created;
+  std::set<uint32_t>                    removed;
+  for (uint32_t v = 8; v < points.size(); v += 3) // never a corner
+  {
+    mesh.Remove(v, killed, created);
+    removed.insert(v);
+    EXPECT_FALSE(killed.empty());
+  }
+  ASSERT_TRUE(mesh.IsValid());
+  std::vector<GridPoint> rest;
+  for (uint32_t v = 0; v < points.size(); ++v)
+  {
+    if (!removed.count(v))
+    {
+      rest.push_back(points[v]);
+    }
+  }
+  std::vector<Tetrahedron> after;
+  for (const auto & c : mesh.FiniteCells())
+  {
+    after.push_back(c.vertices);
+  }
+  EXPECT_EQ(Cells(points, after), Cells(rest, Tetrahedralize(rest)));
+}
+
+TEST(Tetrahedralization, DuplicatePointsAreRefused)
+{
+  std::vector<GridPoint> points = test::Corners(GridSize{ 4, 4, 4 });
+  points.push_back(points[3]);
+  EXPECT_THROW(Tetrahedralize(points), std::invalid_argument);
+}
+
+} // namespace
