@@ -10,8 +10,6 @@ itk_module(DelaunayCompression
     ITKCommon
     ITKMesh
     ITKIOImageBase
-  COMPILE_DEPENDS
-    ITKImageSources
   TEST_DEPENDS
     ITKTestKernel
     ITKGoogleTest

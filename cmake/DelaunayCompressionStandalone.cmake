@@ -12,15 +12,18 @@ option(BUILD_SHARED_LIBS "Build the module library shared" ON)
 option(BUILD_TESTING "Build the tests" ON)
 option(DelaunayCompression_BUILD_BENCHMARKS "Build the benchmark programs" ON)
 
-# The IO modules make the CLI and the tests read NRRD, NIfTI, MetaImage and DICOM.
-set(DelaunayCompression_ITK_COMPONENTS
-  ITKCommon ITKMesh ITKIOImageBase ITKImageSources ITKTestKernel
-  ITKIONRRD ITKIONIFTI ITKIOMeta ITKIOGDCM)
-find_package(ITK 5.2 REQUIRED COMPONENTS ${DelaunayCompression_ITK_COMPONENTS})
+# What the library needs (as itk-module.cmake's DEPENDS), and the IO modules with which the CLI
+# and the tests read NRRD, NIfTI, MetaImage and DICOM.
+set(DelaunayCompression_ITK_COMPONENTS ITKCommon ITKMesh ITKIOImageBase)
+set(DelaunayCompression_ITK_IO_COMPONENTS ITKIONRRD ITKIONIFTI ITKIOMeta ITKIOGDCM)
+find_package(ITK 5.2 REQUIRED COMPONENTS ${DelaunayCompression_ITK_COMPONENTS} ${DelaunayCompression_ITK_IO_COMPONENTS}
+  ITKTestKernel)
 include(${ITK_USE_FILE})
 find_package(CGAL REQUIRED)
 
-set(CMAKE_INSTALL_RPATH "${CMAKE_INSTALL_FULL_LIBDIR}")
+# Installed programs find the module's library relative to themselves, whatever the prefix.
+file(RELATIVE_PATH _dcv_bin_to_lib "/${CMAKE_INSTALL_BINDIR}" "/${CMAKE_INSTALL_LIBDIR}")
+set(CMAKE_INSTALL_RPATH "$ORIGIN/${_dcv_bin_to_lib}")
 set(CMAKE_INSTALL_RPATH_USE_LINK_PATH ON)
 
 add_subdirectory(src)

@@ -22,7 +22,9 @@
 #include "dcvRasterizer.h"
 
 #include <array>
+#include <algorithm>
 #include <cstdint>
+#include <thread>
 #include <vector>
 
 /** \file dcvApproximation.h
@@ -45,7 +47,8 @@ struct Approximation
   std::vector<Tetrahedron> tetrahedra;
 };
 
-/** The Delaunay tetrahedralization of grid points (CGAL, exact predicates, symbolic perturbation):
+/** The Delaunay tetrahedralization of grid points (CGAL, exact predicates, symbolic perturbation),
+ * listed in a spatially coherent order:
  * unique for a point set, so it equals the encoder's mesh whatever the insertion order.
  * Throws std::invalid_argument on duplicate points. */
 DelaunayCompression_EXPORT std::vector<Tetrahedron>
@@ -56,17 +59,37 @@ DelaunayCompression_EXPORT void
 CheckPoints(const GridSize & grid, const std::vector<GridPoint> & points);
 
 /** Rasterizes every tetrahedron into `out` (laid out as the grid; voxels no cell owns are left as
- * they are). Cells own disjoint voxels, so the order does not matter. */
+ * they are). Cells own disjoint voxels, so they are shared out among `threads` threads (0: one per
+ * core) without locks, and the result does not depend on the order. */
 template <typename T>
 void
-Rasterize(const Approximation & a, T * out)
+Rasterize(const Approximation & a, T * out, unsigned int threads = 0)
 {
-  for (const Tetrahedron & t : a.tetrahedra)
+  auto work = [&a, out](std::size_t begin, std::size_t end) {
+    for (std::size_t c = begin; c < end; ++c)
+    {
+      const Tetrahedron & t = a.tetrahedra[c];
+      RasterizeTetrahedron(a.grid,
+                           { a.points[t[0]], a.points[t[1]], a.points[t[2]], a.points[t[3]] },
+                           { a.values[t[0]], a.values[t[1]], a.values[t[2]], a.values[t[3]] },
+                           out);
+    }
+  };
+  const std::size_t n = a.tetrahedra.size();
+  if (threads == 0)
   {
-    RasterizeTetrahedron(a.grid,
-                         { a.points[t[0]], a.points[t[1]], a.points[t[2]], a.points[t[3]] },
-                         { a.values[t[0]], a.values[t[1]], a.values[t[2]], a.values[t[3]] },
-                         out);
+    threads = std::max(1u, std::thread::hardware_concurrency());
+  }
+  threads = unsigned(std::min<std::size_t>(threads, n / 1024 + 1)); // small meshes: not worth a thread
+  std::vector<std::thread> pool;
+  for (unsigned int i = 1; i < threads; ++i)
+  {
+    pool.emplace_back(work, n * i / threads, n * (i + 1) / threads);
+  }
+  work(0, n / threads);
+  for (auto & t : pool)
+  {
+    t.join();
   }
 }
 

@@ -68,11 +68,21 @@ using GridPoint = std::array<int32_t, 3>;
 
 namespace detail
 {
+/** floor(a / b) for b > 0 and |a| < 2^53, exact: a double division (much cheaper than a 64-bit
+ * integer one, which would dominate the rasterizer) corrected with integer products. */
 inline int64_t
-FloorDiv(int64_t a, int64_t b) // b > 0
+FloorDiv(int64_t a, int64_t b)
 {
-  const int64_t q = a / b;
-  return (a % b != 0 && a < 0) ? q - 1 : q;
+  int64_t q = int64_t(double(a) / double(b)); // within 2 of the truth
+  while (q * b > a)
+  {
+    --q;
+  }
+  while ((q + 1) * b <= a)
+  {
+    ++q;
+  }
+  return q;
 }
 
 /** Sign of the perturbation along one axis for a voxel at coordinate c of an axis with n voxels. */
@@ -180,8 +190,7 @@ template <typename TFunction>
 void
 ForEachSpan(const GridSize & grid, const std::array<GridPoint, 4> & p, TFunction && f)
 {
-  const int64_t vol6 = SignedVolume6(p);
-  if (vol6 == 0)
+  if (SignedVolume6(p) == 0)
   {
     return;
   }
@@ -198,8 +207,7 @@ ForEachSpan(const GridSize & grid, const std::array<GridPoint, 4> & p, TFunction
     const int64_t     wx = c[0] - a[0], wy = c[1] - a[1], wz = c[2] - a[2];
     int64_t           nx = uy * wz - uz * wy, ny = uz * wx - ux * wz, nz = ux * wy - uy * wx;
     const GridPoint & s = p[i];
-    const int64_t     side = nx * (s[0] - a[0]) + ny * (s[1] - a[1]) + nz * (s[2] - a[2]);
-    if (side < 0)
+    if (nx * (s[0] - a[0]) + ny * (s[1] - a[1]) + nz * (s[2] - a[2]) < 0)
     {
       nx = -nx;
       ny = -ny;
@@ -210,59 +218,101 @@ ForEachSpan(const GridSize & grid, const std::array<GridPoint, 4> & p, TFunction
     n[i][2] = nz;
     d[i] = -(nx * a[0] + ny * a[1] + nz * a[2]);
   }
+  // Row stepping of each face's threshold (see below): num changes by dnum = -+ny per row.
+  int64_t m[4], dq[4], dr[4];
+  for (int i = 0; i < 4; ++i)
+  {
+    m[i] = n[i][0] > 0 ? n[i][0] : -n[i][0];
+    if (m[i] != 0)
+    {
+      const int64_t dnum = n[i][0] > 0 ? -n[i][1] : n[i][1];
+      dq[i] = detail::FloorDiv(dnum, m[i]);
+      dr[i] = dnum - dq[i] * m[i];
+    }
+  }
   int32_t lo[3], hi[3];
   for (int c = 0; c < 3; ++c)
   {
-    lo[c] = std::min(std::min(p[0][c], p[1][c]), std::min(p[2][c], p[3][c]));
-    hi[c] = std::max(std::max(p[0][c], p[1][c]), std::max(p[2][c], p[3][c]));
+    lo[c] = std::max(std::min(std::min(p[0][c], p[1][c]), std::min(p[2][c], p[3][c])), 0);
+    hi[c] = std::min(std::max(std::max(p[0][c], p[1][c]), std::max(p[2][c], p[3][c])), (&grid.x)[c] - 1);
   }
-  lo[0] = std::max(lo[0], 0);
-  hi[0] = std::min(hi[0], grid.x - 1);
-  lo[1] = std::max(lo[1], 0);
-  hi[1] = std::min(hi[1], grid.y - 1);
-  lo[2] = std::max(lo[2], 0);
-  hi[2] = std::min(hi[2], grid.z - 1);
   for (int32_t z = lo[2]; z <= hi[2]; ++z)
   {
+    // Rows that can meet the cross-section at this z: the y extent of the edges crossing it,
+    // widened to whole rows (a superset; the exact face tests below decide).
+    double ymin = std::numeric_limits<double>::infinity();
+    double ymax = -ymin;
+    for (int i = 0; i < 4; ++i)
+    {
+      if (p[i][2] == z)
+      {
+        ymin = std::min(ymin, double(p[i][1]));
+        ymax = std::max(ymax, double(p[i][1]));
+      }
+      for (int j = i + 1; j < 4; ++j)
+      {
+        if ((int64_t(p[i][2]) - z) * (int64_t(p[j][2]) - z) < 0)
+        {
+          const double y = p[i][1] + double(p[j][1] - p[i][1]) * double(z - p[i][2]) / double(p[j][2] - p[i][2]);
+          ymin = std::min(ymin, y);
+          ymax = std::max(ymax, y);
+        }
+      }
+    }
+    if (!(ymin <= ymax))
+    {
+      continue;
+    }
+    const int32_t y0 = std::max(lo[1], int32_t(std::floor(ymin)) - 1);
+    const int32_t y1 = std::min(hi[1], int32_t(std::ceil(ymax)) + 1);
     const int sz = detail::InwardSign(z, grid.z);
-    for (int32_t y = lo[1]; y <= hi[1]; ++y)
+    // Per face, along y, the inside test of a row is "x > num / m" (nx > 0) or "x < num / m"
+    // (nx < 0), num affine in y. Keep t = floor(num / m) and r = num - t m exactly, stepping them
+    // by whole rows: one division per face and slice, none per row.
+    int64_t t[4], r[4], C[4];
+    for (int i = 0; i < 4; ++i)
+    {
+      C[i] = n[i][1] * y0 + n[i][2] * z + d[i];
+      if (m[i] != 0)
+      {
+        const int64_t num = n[i][0] > 0 ? -C[i] : C[i];
+        t[i] = detail::FloorDiv(num, m[i]);
+        r[i] = num - t[i] * m[i];
+      }
+    }
+    for (int32_t y = y0; y <= y1; ++y)
     {
       const int sy = detail::InwardSign(y, grid.y);
       int64_t   x0 = lo[0];
       int64_t   x1 = hi[0];
-      for (int i = 0; i < 4 && x0 <= x1; ++i)
+      for (int i = 0; i < 4; ++i)
       {
         const int64_t nx = n[i][0];
-        const int64_t C = n[i][1] * y + n[i][2] * z + d[i];
-        // Inside: nx * x + C > 0, or == 0 with a positive perturbation sign.
         if (nx > 0)
         {
-          // x > -C / nx; at equality the sign is that of sx * nx, i.e. sx.
-          const int64_t t = detail::FloorDiv(-C, nx);
-          const bool    exact = (t * nx == -C);
-          const int64_t first = (exact && detail::InwardSign(t, grid.x) > 0) ? t : t + 1;
-          x0 = std::max(x0, first);
+          // x > t + r/m; on the plane (r == 0) the perturbation sign is that of sx * nx, i.e. sx.
+          x0 = std::max(x0, (r[i] == 0 && detail::InwardSign(t[i], grid.x) > 0) ? t[i] : t[i] + 1);
         }
         else if (nx < 0)
         {
-          // x < C / (-nx); at equality the sign is that of sx * nx, i.e. -sx.
-          const int64_t m = -nx;
-          const int64_t t = detail::FloorDiv(C, m);
-          const bool    exact = (t * m == C);
-          const int64_t last = exact ? (detail::InwardSign(t, grid.x) < 0 ? t : t - 1) : t;
-          x1 = std::min(x1, last);
+          // x < t + r/m; on the plane the sign is that of -sx.
+          x1 = std::min(x1, r[i] == 0 ? (detail::InwardSign(t[i], grid.x) < 0 ? t[i] : t[i] - 1) : t[i]);
         }
-        else if (C < 0)
+        else if (C[i] < 0 || (C[i] == 0 && (n[i][1] != 0 ? sy * n[i][1] : sz * n[i][2]) < 0))
         {
+          // The row is outside, or lies in the face plane with the perturbation pointing out
+          // (the first non-zero of sy ny, sz nz decides).
           x1 = x0 - 1;
         }
-        else if (C == 0)
+        C[i] += n[i][1];
+        if (m[i] != 0)
         {
-          // The whole row lies in the face plane: the first non-zero of (sy ny, sz nz) decides.
-          const int64_t s = n[i][1] != 0 ? sy * n[i][1] : sz * n[i][2];
-          if (s < 0)
+          t[i] += dq[i];
+          r[i] += dr[i];
+          if (r[i] >= m[i])
           {
-            x1 = x0 - 1;
+            r[i] -= m[i];
+            ++t[i];
           }
         }
       }

@@ -1,0 +1,28 @@
+#!/usr/bin/env bash
+# Installs the Debian (bookworm) packages the module needs, when they are missing.
+set -euo pipefail
+
+packages=(
+  cmake ninja-build g++ pkg-config
+  libinsighttoolkit5-dev  # ITK 5.2: images, meshes, IO
+  libcgal-dev             # Delaunay tetrahedralization (exact predicates)
+  libcli11-dev            # dcv's arguments
+  libgtest-dev            # tests
+)
+
+missing=()
+for p in "${packages[@]}"; do
+  dpkg-query -W -f='${Status}' "$p" 2>/dev/null | grep -q "install ok installed" || missing+=("$p")
+done
+if [ ${#missing[@]} -eq 0 ]; then
+  exit 0
+fi
+
+echo "Installing: ${missing[*]}"
+sudo=""
+if [ "$(id -u)" -ne 0 ]; then
+  sudo="sudo"
+fi
+export DEBIAN_FRONTEND=noninteractive
+$sudo apt-get update -qq
+$sudo apt-get install -y -qq --no-install-recommends "${missing[@]}" >/dev/null

@@ -1,0 +1,15 @@
+#!/usr/bin/env bash
+# Builds the module, runs the whole test suite, then installs it and builds examples/ against the
+# installed CMake package, as another project would.
+set -euo pipefail
+cd "$(dirname "$0")/.."
+bash scripts/build.sh
+(cd build && ctest --output-on-failure -j "$(nproc)")
+rm -rf build/install build/examples
+cmake --install build >/dev/null
+cmake -S examples -B build/examples -G Ninja -DCMAKE_BUILD_TYPE=Release -DCMAKE_PREFIX_PATH="$PWD/build/install" >/dev/null
+cmake --build build/examples
+
+mkdir -p build/examples/run
+build/cli/dcv phantom build/examples/run/phantom.nrrd --size 48 --force
+build/examples/ApproximateVolume build/examples/run/phantom.nrrd build/examples/run/approximation.nrrd 2000
