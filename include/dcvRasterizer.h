@@ -238,8 +238,8 @@ ForEachSpan(const GridSize & grid, const std::array<GridPoint, 4> & p, TFunction
   }
   for (int32_t z = lo[2]; z <= hi[2]; ++z)
   {
-    // Rows that can meet the cross-section at this z: the y extent of the edges crossing it,
-    // widened to whole rows (a superset; the exact face tests below decide).
+    // Rows that can meet the cross-section at this z: the y extent of the vertices on it and of the
+    // edges crossing it (a superset of the owned rows; the exact face tests below decide).
     double ymin = std::numeric_limits<double>::infinity();
     double ymax = -ymin;
     for (int i = 0; i < 4; ++i)
@@ -263,8 +263,10 @@ ForEachSpan(const GridSize & grid, const std::array<GridPoint, 4> & p, TFunction
     {
       continue;
     }
-    const int32_t y0 = std::max(lo[1], int32_t(std::floor(ymin)) - 1);
-    const int32_t y1 = std::min(hi[1], int32_t(std::ceil(ymax)) + 1);
+    // The rows inside [ymin, ymax]; the margin covers rounding (coordinates < 2^16, so the
+    // computed ends are within 1e-10 of the true ones).
+    const int32_t y0 = std::max(lo[1], int32_t(std::ceil(ymin - 1e-6)));
+    const int32_t y1 = std::min(hi[1], int32_t(std::floor(ymax + 1e-6)));
     const int sz = detail::InwardSign(z, grid.z);
     // Per face, along y, the inside test of a row is "x > num / m" (nx > 0) or "x < num / m"
     // (nx < 0), num affine in y. Keep t = floor(num / m) and r = num - t m exactly, stepping them
