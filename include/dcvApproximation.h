@@ -23,6 +23,7 @@
 
 #include <array>
 #include <algorithm>
+#include <atomic>
 #include <cstdint>
 #include <thread>
 #include <vector>
@@ -59,34 +60,42 @@ DelaunayCompression_EXPORT void
 CheckPoints(const GridSize & grid, const std::vector<GridPoint> & points);
 
 /** Rasterizes every tetrahedron into `out` (laid out as the grid; voxels no cell owns are left as
- * they are). Cells own disjoint voxels, so they are shared out among `threads` threads (0: one per
- * core) without locks, and the result does not depend on the order. */
+ * they are). Cells own disjoint voxels, so `threads` threads (0: one per core) share them without
+ * locks, and the result does not depend on the order. */
 template <typename T>
 void
 Rasterize(const Approximation & a, T * out, unsigned int threads = 0)
 {
-  auto work = [&a, out](std::size_t begin, std::size_t end) {
-    for (std::size_t c = begin; c < end; ++c)
+  // Threads take chunks of consecutive (spatially close) cells from a shared counter, so that a
+  // thread that drew large cells does not hold the others up.
+  constexpr std::size_t    chunk = 512;
+  const std::size_t        n = a.tetrahedra.size();
+  std::atomic<std::size_t> next{ 0 };
+  auto                     work = [&a, out, n, &next]() {
+    for (std::size_t begin = next.fetch_add(chunk); begin < n; begin = next.fetch_add(chunk))
     {
-      const Tetrahedron & t = a.tetrahedra[c];
-      RasterizeTetrahedron(a.grid,
-                           { a.points[t[0]], a.points[t[1]], a.points[t[2]], a.points[t[3]] },
-                           { a.values[t[0]], a.values[t[1]], a.values[t[2]], a.values[t[3]] },
-                           out);
+      const std::size_t end = std::min(n, begin + chunk);
+      for (std::size_t c = begin; c < end; ++c)
+      {
+        const Tetrahedron & t = a.tetrahedra[c];
+        RasterizeTetrahedron(a.grid,
+                             { a.points[t[0]], a.points[t[1]], a.points[t[2]], a.points[t[3]] },
+                             { a.values[t[0]], a.values[t[1]], a.values[t[2]], a.values[t[3]] },
+                             out);
+      }
     }
   };
-  const std::size_t n = a.tetrahedra.size();
   if (threads == 0)
   {
     threads = std::max(1u, std::thread::hardware_concurrency());
   }
-  threads = unsigned(std::min<std::size_t>(threads, n / 1024 + 1)); // small meshes: not worth a thread
+  threads = unsigned(std::min<std::size_t>(threads, n / (4 * chunk) + 1)); // small meshes: one thread
   std::vector<std::thread> pool;
   for (unsigned int i = 1; i < threads; ++i)
   {
-    pool.emplace_back(work, n * i / threads, n * (i + 1) / threads);
+    pool.emplace_back(work);
   }
-  work(0, n / threads);
+  work();
   for (auto & t : pool)
   {
     t.join();
