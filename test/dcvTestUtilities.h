@@ -25,6 +25,7 @@
 #include <gtest/gtest.h>
 
 #include <algorithm>
+#include <cstdlib>
 #include <filesystem>
 #include <numeric>
 #include <random>
@@ -41,10 +42,12 @@ struct Volume
   double             peak{ 255.0 };
 };
 
+/** The real volumes: $DCV_DATA_DIR when set, else ../shared/data next to the source tree. */
 inline std::string
 DataFile(const std::string & name)
 {
-  return std::string(DCV_DATA_DIR) + "/" + name;
+  const char * directory = std::getenv("DCV_DATA_DIR");
+  return std::string(directory && *directory ? directory : DCV_DATA_DIR) + "/" + name;
 }
 
 inline bool
