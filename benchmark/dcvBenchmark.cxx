@@ -21,6 +21,7 @@
 // Usage: dcvBenchmark [--no-header] VOLUME N1 [N2 ...]
 #include "dcvApproximation.h"
 #include "dcvRefinementEngine.h"
+#include "dcvVolumeHeader.h"
 
 #include "itkImage.h"
 #include "itkImageFileReader.h"
@@ -47,17 +48,8 @@ namespace
 using ImageType = itk::Image<float, 3>;
 using Clock = std::chrono::steady_clock;
 
-/** A user-facing failure: printed as "dcvBenchmark: message" with exit status 1. */
-struct Failure : std::runtime_error
-{
-  using std::runtime_error::runtime_error;
-};
-
-std::string
-Quoted(const std::string & path)
-{
-  return "'" + path + "'";
-}
+using dcv::Failure; // printed as "dcvBenchmark: message" with exit status 1
+using dcv::Quoted;
 
 struct Volume
 {
@@ -71,38 +63,7 @@ struct Volume
 Volume
 ReadVolume(const std::string & path)
 {
-  if (!fs::exists(path))
-  {
-    throw Failure("cannot read " + Quoted(path) + ": no such file");
-  }
-  if (fs::is_directory(path))
-  {
-    throw Failure("cannot read " + Quoted(path) + ": it is a directory, not a volume file");
-  }
-  auto io = itk::ImageIOFactory::CreateImageIO(path.c_str(), itk::IOFileModeEnum::ReadMode);
-  if (!io)
-  {
-    throw Failure("cannot read " + Quoted(path) + ": not an image format ITK knows (NRRD, NIfTI, MetaImage, ...)");
-  }
-  io->SetFileName(path);
-  try
-  {
-    io->ReadImageInformation();
-  }
-  catch (const itk::ExceptionObject & e)
-  {
-    throw Failure("cannot read " + Quoted(path) + ": " + e.GetDescription());
-  }
-  const unsigned int dimensions = io->GetNumberOfDimensions();
-  if (dimensions != 3)
-  {
-    throw Failure(Quoted(path) + " is a " + std::to_string(dimensions) + "D image; the benchmark needs a 3D volume");
-  }
-  if (io->GetNumberOfComponents() != 1)
-  {
-    throw Failure(Quoted(path) + " has " + std::to_string(io->GetNumberOfComponents()) +
-                  " components per voxel; the benchmark needs a scalar volume");
-  }
+  const auto io = dcv::ReadVolumeHeader(path);
 
   Volume     volume;
   const auto component = io->GetComponentType();

@@ -18,6 +18,7 @@
 // dcv: the command-line face of the DelaunayCompression module.
 #include "dcvApproximation.h"
 #include "dcvPhantom.h"
+#include "dcvVolumeHeader.h"
 #include "itkDelaunayApproximationImageToMeshFilter.h"
 #include "itkTetrahedralMeshToImageFilter.h"
 
@@ -43,17 +44,8 @@ namespace
 constexpr unsigned int Dimension = 3;
 using MeshType = itk::Mesh<double, Dimension>;
 
-/** A user-facing failure: printed as "dcv: message" with exit status 1. */
-struct Failure : std::runtime_error
-{
-  using std::runtime_error::runtime_error;
-};
-
-std::string
-Quoted(const std::string & path)
-{
-  return "'" + path + "'";
-}
+using dcv::Failure; // printed as "dcv: message" with exit status 1
+using dcv::Quoted;
 
 /** Refuses to clobber an existing file unless forced, and checks that ITK can write the format. */
 void
@@ -166,55 +158,6 @@ Observe(itk::ProcessObject * process, const std::string & label, bool quiet)
   }
 }
 
-/** Reads a volume's header and checks that dcv can work on it. */
-itk::ImageIOBase::Pointer
-ReadHeader(const std::string & input)
-{
-  if (!fs::exists(input))
-  {
-    throw Failure("cannot read " + Quoted(input) + ": no such file");
-  }
-  if (fs::is_directory(input))
-  {
-    throw Failure("cannot read " + Quoted(input) + ": it is a directory, not a volume file");
-  }
-  auto io = itk::ImageIOFactory::CreateImageIO(input.c_str(), itk::IOFileModeEnum::ReadMode);
-  if (!io)
-  {
-    throw Failure("cannot read " + Quoted(input) + ": not an image format ITK knows (NRRD, NIfTI, MetaImage, ...)");
-  }
-  io->SetFileName(input);
-  try
-  {
-    io->ReadImageInformation();
-  }
-  catch (const itk::ExceptionObject & e)
-  {
-    throw Failure("cannot read " + Quoted(input) + ": " + e.GetDescription());
-  }
-  const unsigned int dimensions = io->GetNumberOfDimensions();
-  if (dimensions != 3)
-  {
-    throw Failure(Quoted(input) + " is a " + std::to_string(dimensions) + "D image; dcv needs a 3D volume");
-  }
-  if (io->GetNumberOfComponents() != 1)
-  {
-    throw Failure(Quoted(input) + " has " + std::to_string(io->GetNumberOfComponents()) +
-                  " components per voxel (" + itk::ImageIOBase::GetPixelTypeAsString(io->GetPixelType()) +
-                  " pixels); dcv needs a scalar volume");
-  }
-  for (unsigned int d = 0; d < 3; ++d)
-  {
-    if (io->GetDimensions(d) < 2)
-    {
-      throw Failure(Quoted(input) + " is " + std::to_string(io->GetDimensions(0)) + "x" +
-                    std::to_string(io->GetDimensions(1)) + "x" + std::to_string(io->GetDimensions(2)) +
-                    " voxels; dcv needs at least 2 voxels along each axis");
-    }
-  }
-  return io;
-}
-
 /** Peak of the PSNR: 255 for 8-bit data, else the range of the original volume. */
 template <typename TPixel>
 double
@@ -281,7 +224,7 @@ Approximate(const ApproximateOptions & o)
 void
 RunApproximate(const ApproximateOptions & o)
 {
-  auto io = ReadHeader(o.input);
+  auto io = dcv::ReadVolumeHeader(o.input);
   if (o.points < 8)
   {
     throw Failure("--points must be at least 8 (the corners of the volume), got " + std::to_string(o.points));
