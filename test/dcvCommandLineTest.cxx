@@ -94,6 +94,17 @@ protected:
     image->Allocate(true);
     return Write<ImageType>(image, name);
   }
+  /** Runs `dcv approximate INPUT out.nrrd EXTRA` and expects a failure whose message has every phrase. */
+  void
+  ExpectRefused(const std::string & input, const std::vector<std::string> & phrases, const std::string & extra = "")
+  {
+    const Result r = RunDcv("approximate " + input + " " + Path("out.nrrd") + extra);
+    EXPECT_NE(r.status, 0);
+    for (const auto & phrase : phrases)
+    {
+      EXPECT_NE(r.output.find(phrase), std::string::npos) << "missing '" << phrase << "' in: " << r.output;
+    }
+  }
   fs::path m_Directory;
 };
 
@@ -139,37 +150,25 @@ TEST_F(CommandLine, PhantomThenApproximate)
 
 TEST_F(CommandLine, MissingInput)
 {
-  const Result r = RunDcv("approximate " + Path("nothing.nrrd") + " " + Path("out.nrrd"));
-  EXPECT_NE(r.status, 0);
-  EXPECT_NE(r.output.find("nothing.nrrd"), std::string::npos) << r.output;
-  EXPECT_NE(r.output.find("no such file"), std::string::npos) << r.output;
+  ExpectRefused(Path("nothing.nrrd"), { "nothing.nrrd", "no such file" });
   EXPECT_FALSE(fs::exists(Path("out.nrrd")));
 }
 
 TEST_F(CommandLine, NotAnImage)
 {
   std::ofstream(Path("text.nrrd")) << "this is not a volume\n";
-  const Result r = RunDcv("approximate " + Path("text.nrrd") + " " + Path("out.nrrd"));
-  EXPECT_NE(r.status, 0);
-  EXPECT_NE(r.output.find("text.nrrd"), std::string::npos) << r.output;
+  ExpectRefused(Path("text.nrrd"), { "text.nrrd" });
   EXPECT_FALSE(fs::exists(Path("out.nrrd")));
 }
 
 TEST_F(CommandLine, TwoDimensionalImage)
 {
-  const std::string input = WriteScalar<2>("slice.nrrd", 16);
-  const Result      r = RunDcv("approximate " + input + " " + Path("out.nrrd"));
-  EXPECT_NE(r.status, 0);
-  EXPECT_NE(r.output.find("is a 2D image"), std::string::npos) << r.output;
-  EXPECT_NE(r.output.find("slice.nrrd"), std::string::npos) << r.output;
+  ExpectRefused(WriteScalar<2>("slice.nrrd", 16), { "is a 2D image", "slice.nrrd" });
 }
 
 TEST_F(CommandLine, FourDimensionalImage)
 {
-  const std::string input = WriteScalar<4>("series.nrrd", 4);
-  const Result      r = RunDcv("approximate " + input + " " + Path("out.nrrd"));
-  EXPECT_NE(r.status, 0);
-  EXPECT_NE(r.output.find("is a 4D image"), std::string::npos) << r.output;
+  ExpectRefused(WriteScalar<4>("series.nrrd", 4), { "is a 4D image" });
 }
 
 TEST_F(CommandLine, FlatVolume)
@@ -179,10 +178,7 @@ TEST_F(CommandLine, FlatVolume)
   ImageType::SizeType size{ { 8, 8, 1 } };
   image->SetRegions(size);
   image->Allocate(true);
-  const std::string input = Write<ImageType>(image, "flat.nrrd");
-  const Result      r = RunDcv("approximate " + input + " " + Path("out.nrrd"));
-  EXPECT_NE(r.status, 0);
-  EXPECT_NE(r.output.find("at least 2 voxels along each axis"), std::string::npos) << r.output;
+  ExpectRefused(Write<ImageType>(image, "flat.nrrd"), { "at least 2 voxels along each axis" });
 }
 
 TEST_F(CommandLine, VectorPixels)
@@ -193,19 +189,12 @@ TEST_F(CommandLine, VectorPixels)
   image->SetRegions(size);
   image->SetNumberOfComponentsPerPixel(3);
   image->Allocate(true);
-  const std::string input = Write<ImageType>(image, "vectors.nrrd");
-  const Result      r = RunDcv("approximate " + input + " " + Path("out.nrrd"));
-  EXPECT_NE(r.status, 0);
-  EXPECT_NE(r.output.find("3 components per voxel"), std::string::npos) << r.output;
-  EXPECT_NE(r.output.find("scalar volume"), std::string::npos) << r.output;
+  ExpectRefused(Write<ImageType>(image, "vectors.nrrd"), { "3 components per voxel", "scalar volume" });
 }
 
 TEST_F(CommandLine, TooFewPoints)
 {
-  const std::string input = WriteScalar<3>("volume.nrrd", 8);
-  const Result      r = RunDcv("approximate " + input + " " + Path("out.nrrd") + " --points 7");
-  EXPECT_NE(r.status, 0);
-  EXPECT_NE(r.output.find("--points must be at least 8"), std::string::npos) << r.output;
+  ExpectRefused(WriteScalar<3>("volume.nrrd", 8), { "--points must be at least 8" }, " --points 7");
   EXPECT_FALSE(fs::exists(Path("out.nrrd")));
 }
 
