@@ -10,6 +10,7 @@ itk_module(DelaunayCompression
     ITKCommon
     ITKMesh
     ITKIOImageBase
+    ITKImageFeature
   TEST_DEPENDS
     ITKTestKernel
     ITKGoogleTest

@@ -176,6 +176,10 @@ struct ApproximateOptions
   std::string input;
   std::string output;
   std::size_t points{ 10000 };
+  std::string mode{ "best" };
+  double      domainSigma{ 1.0 };
+  double      rangeSigma{ 20.0 };
+  double      alpha{ 0.9 };
   bool        force{ false };
   bool        quiet{ false };
 };
@@ -201,6 +205,10 @@ Approximate(const ApproximateOptions & o)
   auto       approximate = itk::DelaunayApproximationImageToMeshFilter<ImageType, MeshType>::New();
   approximate->SetInput(image);
   approximate->SetNumberOfPoints(o.points);
+  approximate->SetMode(dcv::ParseMode(o.mode));
+  approximate->SetDomainSigma(o.domainSigma);
+  approximate->SetRangeSigma(o.rangeSigma);
+  approximate->SetAlpha(o.alpha);
   Observe(approximate, "approximating", o.quiet);
   auto rasterize = itk::TetrahedralMeshToImageFilter<MeshType, ImageType>::New();
   rasterize->SetInput(approximate->GetOutput());
@@ -215,7 +223,8 @@ Approximate(const ApproximateOptions & o)
   WriteImage(result, o.output);
   if (!o.quiet)
   {
-    std::cout << "points: " << approximate->GetOutput()->GetNumberOfPoints() << "\n"
+    std::cout << "mode: " << o.mode << "\n"
+              << "points: " << approximate->GetOutput()->GetNumberOfPoints() << "\n"
               << "PSNR: " << psnr << " dB\n"
               << "seconds: " << seconds << "\n";
   }
@@ -228,6 +237,23 @@ RunApproximate(const ApproximateOptions & o)
   if (o.points < 8)
   {
     throw Failure("--points must be at least 8 (the corners of the volume), got " + std::to_string(o.points));
+  }
+  try
+  {
+    dcv::ParseMode(o.mode);
+  }
+  catch (const std::invalid_argument & e)
+  {
+    throw Failure(std::string("--mode: ") + e.what());
+  }
+  if (!(o.domainSigma > 0.0) || !(o.rangeSigma > 0.0))
+  {
+    throw Failure("--domain-sigma and --range-sigma must be positive, got " + std::to_string(o.domainSigma) +
+                  " and " + std::to_string(o.rangeSigma));
+  }
+  if (!(o.alpha > 0.0))
+  {
+    throw Failure("--alpha must be positive, got " + std::to_string(o.alpha));
   }
   CheckOutput(o.output, o.force);
   using C = itk::IOComponentEnum;
@@ -291,6 +317,21 @@ main(int argc, char * argv[])
   approximate->add_option("INPUT", approximateOptions.input, "Input volume (NRRD, NIfTI, MetaImage, ...)")->required();
   approximate->add_option("OUTPUT", approximateOptions.output, "Output volume (format from its extension)")->required();
   approximate->add_option("--points,-n", approximateOptions.points, "Number of significant points (at least 8)")
+    ->capture_default_str();
+  approximate
+    ->add_option("--mode,-m",
+                 approximateOptions.mode,
+                 "silva (refinement), dec (+ decimation), dec+com (+ combined image approach: the paper's "
+                 "method), best (+ least-squares values)")
+    ->capture_default_str();
+  approximate
+    ->add_option("--domain-sigma", approximateOptions.domainSigma, "Bilateral filter of I*: spatial sigma, voxels")
+    ->capture_default_str();
+  approximate
+    ->add_option("--range-sigma", approximateOptions.rangeSigma, "Bilateral filter of I*: intensity sigma")
+    ->capture_default_str();
+  approximate
+    ->add_option("--alpha", approximateOptions.alpha, "Choose positions on I* until PSNR >= alpha * PSNR(I*)")
     ->capture_default_str();
   approximate->add_flag("--force,-f", approximateOptions.force, "Overwrite OUTPUT if it exists");
   approximate->add_flag("--quiet,-q", approximateOptions.quiet, "Print nothing but errors");

@@ -14,12 +14,13 @@ option(DelaunayCompression_BUILD_BENCHMARKS "Build the benchmark programs" ON)
 
 # What the library needs (as itk-module.cmake's DEPENDS), and the IO modules with which the CLI
 # and the tests read NRRD, NIfTI, MetaImage and DICOM.
-set(DelaunayCompression_ITK_COMPONENTS ITKCommon ITKMesh ITKIOImageBase)
+set(DelaunayCompression_ITK_COMPONENTS ITKCommon ITKMesh ITKIOImageBase ITKImageFeature)
 set(DelaunayCompression_ITK_IO_COMPONENTS ITKIONRRD ITKIONIFTI ITKIOMeta ITKIOGDCM)
 find_package(ITK 5.2 REQUIRED COMPONENTS ${DelaunayCompression_ITK_COMPONENTS} ${DelaunayCompression_ITK_IO_COMPONENTS}
   ITKTestKernel)
 include(${ITK_USE_FILE})
 find_package(CGAL REQUIRED)
+find_package(Eigen3 3.3 REQUIRED NO_MODULE)
 
 # Installed programs find the module's library relative to themselves, whatever the prefix.
 file(RELATIVE_PATH _dcv_bin_to_lib "/${CMAKE_INSTALL_BINDIR}" "/${CMAKE_INSTALL_LIBDIR}")

@@ -18,6 +18,7 @@
 #ifndef itkDelaunayApproximationImageToMeshFilter_h
 #define itkDelaunayApproximationImageToMeshFilter_h
 
+#include "dcvRefinementEngine.h"
 #include "itkImageToMeshFilter.h"
 #include "itkTetrahedronCell.h"
 
@@ -32,14 +33,20 @@ namespace itk
  * mesh with TetrahedralMeshToImageFilter onto the input's grid gives the approximation; the points
  * and values alone determine it, since their Delaunay tetrahedralization is unique.
  *
- * Method: Silva's greedy refinement extended to tetrahedra, as described in R. Jovanovic and
- * R. A. Lorentz, "A combined image approach to compression of volumetric data using Delaunay
- * tetrahedralization" (section 2): start from the 8 corners, then alternately insert the voxel of
- * largest error and the worst voxel of the cell with the largest squared-error sum.
+ * Method: R. Jovanovic and R. A. Lorentz, "A combined image approach to compression of volumetric
+ * data using Delaunay tetrahedralization": Silva's greedy refinement on tetrahedra (start from the
+ * 8 corners, then alternately insert the voxel of largest error and the worst voxel of the cell with
+ * the largest squared-error sum), refinement/decimation with the approximate removal cost, and the
+ * combined image approach with I* = BilateralImageFilter(I); plus least-squares vertex values.
  *
  * Parameters:
  * - NumberOfPoints (default 10000, at least 8): the number of significant points. Fewer are used
  *   when the approximation becomes exact earlier.
+ * - Mode (default dcv::Mode::Best): silva, dec, dec+com (the paper's columns) or best (ours: all of
+ *   the above plus least-squares values); see dcv::Mode.
+ * - DomainSigma (default 1.0, in voxels) and RangeSigma (default 20.0, in intensity units) of the
+ *   bilateral filter that makes I* (modes dec+com and best).
+ * - Alpha (default 0.9, > 0): positions are chosen on I* until PSNR(L) >= Alpha * PSNR(I*), then on I.
  *
  * Results after Update(): GetSquaredError() (sum over voxels of the squared difference between the
  * input and the unrounded spline) and GetMeanSquaredError().
@@ -79,10 +86,40 @@ public:
   itkSetClampMacro(NumberOfPoints, SizeValueType, 8, NumericTraits<SizeValueType>::max());
   itkGetConstMacro(NumberOfPoints, SizeValueType);
 
+  /** Which variant of the method runs (default dcv::Mode::Best). */
+  itkSetMacro(Mode, dcv::Mode);
+  itkGetConstMacro(Mode, dcv::Mode);
+
+  /** Bilateral filter of I*: spatial sigma in voxels (default 1.0) and intensity sigma (default 20.0). */
+  itkSetMacro(DomainSigma, double);
+  itkGetConstMacro(DomainSigma, double);
+  itkSetMacro(RangeSigma, double);
+  itkGetConstMacro(RangeSigma, double);
+
+  /** Switch of the selection image from I* to I at PSNR(L) >= Alpha * PSNR(I*) (default 0.9). */
+  itkSetMacro(Alpha, double);
+  itkGetConstMacro(Alpha, double);
+
   /** Sum of squared errors of the approximation, after Update(). */
   itkGetConstMacro(SquaredError, double);
   /** Mean squared error of the approximation, after Update(). */
   itkGetConstMacro(MeanSquaredError, double);
+  /** PSNR of I* against I, after Update() (0 when the mode does not smooth). */
+  itkGetConstMacro(SmoothedPSNR, double);
+
+  /** Seconds of each phase of the last Update(). */
+  struct Timings
+  {
+    double smoothing{ 0.0 };
+    double refinement{ 0.0 };
+    double decimation{ 0.0 };
+    double leastSquares{ 0.0 };
+  };
+  const Timings &
+  GetTimings() const
+  {
+    return m_Timings;
+  }
 
 protected:
   DelaunayApproximationImageToMeshFilter();
@@ -104,8 +141,14 @@ protected:
 
 private:
   SizeValueType m_NumberOfPoints{ 10000 };
+  dcv::Mode     m_Mode{ dcv::Mode::Best };
+  double        m_DomainSigma{ 1.0 };
+  double        m_RangeSigma{ 20.0 };
+  double        m_Alpha{ 0.9 };
   double        m_SquaredError{ 0.0 };
   double        m_MeanSquaredError{ 0.0 };
+  double        m_SmoothedPSNR{ 0.0 };
+  Timings       m_Timings;
 };
 
 } // namespace itk

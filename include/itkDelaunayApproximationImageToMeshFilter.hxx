@@ -20,10 +20,12 @@
 
 #include "itkDelaunayApproximationImageToMeshFilter.h"
 
-#include "dcvRefinementEngine.h"
+#include "itkBilateralImageFilter.h"
 #include "itkImageRegionConstIterator.h"
 #include "itkProcessObject.h"
 
+#include <algorithm>
+#include <chrono>
 #include <stdexcept>
 
 namespace itk
@@ -69,6 +71,16 @@ DelaunayApproximationImageToMeshFilter<TInputImage, TOutputMesh>::GenerateData()
     }
   }
 
+  if (m_DomainSigma <= 0.0 || m_RangeSigma <= 0.0)
+  {
+    itkExceptionMacro("DomainSigma and RangeSigma must be positive, got " << m_DomainSigma << " and " << m_RangeSigma
+                                                                         << ".");
+  }
+  if (m_Alpha <= 0.0)
+  {
+    itkExceptionMacro("Alpha must be positive, got " << m_Alpha << ".");
+  }
+
   // The engine works on float values laid out as the grid (x fastest, as ITK's buffer).
   std::vector<float> values;
   values.reserve(grid.NumberOfVoxels());
@@ -77,12 +89,55 @@ DelaunayApproximationImageToMeshFilter<TInputImage, TOutputMesh>::GenerateData()
     values.push_back(static_cast<float>(it.Get()));
   }
 
+  dcv::RefinementParameters parameters = dcv::ParametersForMode(m_Mode);
+  parameters.alpha = m_Alpha;
+  parameters.valueMin = double(NumericTraits<InputPixelType>::NonpositiveMin());
+  parameters.valueMax = double(NumericTraits<InputPixelType>::max());
+  if (sizeof(InputPixelType) == 1 && NumericTraits<InputPixelType>::is_integer)
+  {
+    parameters.peak = 255.0;
+  }
+  else
+  {
+    const auto range = std::minmax_element(values.begin(), values.end());
+    parameters.peak = std::max(1e-12, double(*range.second) - double(*range.first));
+  }
+
+  // I*: the bilateral filter of I (combined image approach), with sigmas in voxels.
+  using SmoothedImageType = Image<float, 3>;
+  typename SmoothedImageType::Pointer smoothed;
+  float                               engineStart = 0.0f; // progress fraction where the engine begins
+  m_Timings = Timings();
+  if (dcv::UsesSmoothedImage(m_Mode))
+  {
+    using BilateralType = BilateralImageFilter<InputImageType, SmoothedImageType>;
+    auto bilateral = BilateralType::New();
+    bilateral->SetInput(input);
+    typename BilateralType::ArrayType sigmas;
+    for (unsigned int d = 0; d < 3; ++d)
+    {
+      sigmas[d] = m_DomainSigma * input->GetSpacing()[d]; // the filter measures distances in physical units
+    }
+    bilateral->SetDomainSigma(sigmas);
+    bilateral->SetRangeSigma(m_RangeSigma);
+    // A kernel of 1.5 sigma instead of ITK's 2.5 (radius 2 instead of 3 at sigma 1): measured 2.3x
+    // faster on norm-256 (12.5 s instead of 28-31 s) for the same I* (PSNR 47.54 vs 47.45 dB).
+    bilateral->SetDomainMu(1.5);
+    const auto start = std::chrono::steady_clock::now();
+    bilateral->Update();
+    m_Timings.smoothing = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+    smoothed = bilateral->GetOutput();
+    parameters.smoothed = smoothed->GetBufferPointer();
+    engineStart = 0.2f;
+    this->UpdateProgress(engineStart);
+  }
+
   dcv::Approximation approximation;
   try
   {
-    dcv::RefinementEngine engine(values.data(), grid);
-    engine.Refine(m_NumberOfPoints, [this](double fraction) {
-      this->UpdateProgress(float(fraction));
+    dcv::RefinementEngine engine(values.data(), grid, parameters);
+    engine.Approximate(m_NumberOfPoints, [this, engineStart](double fraction) {
+      this->UpdateProgress(engineStart + (1.0f - engineStart) * float(fraction));
       if (this->GetAbortGenerateData())
       {
         ProcessAborted e(__FILE__, __LINE__);
@@ -92,6 +147,10 @@ DelaunayApproximationImageToMeshFilter<TInputImage, TOutputMesh>::GenerateData()
     });
     m_SquaredError = engine.GetSquaredError();
     m_MeanSquaredError = m_SquaredError / double(grid.NumberOfVoxels());
+    m_SmoothedPSNR = engine.GetSmoothedPSNR();
+    m_Timings.refinement = engine.GetTimings().refinement;
+    m_Timings.decimation = engine.GetTimings().decimation;
+    m_Timings.leastSquares = engine.GetTimings().leastSquares;
     approximation = engine.GetApproximation();
   }
   catch (const std::exception & e)
@@ -146,8 +205,13 @@ DelaunayApproximationImageToMeshFilter<TInputImage, TOutputMesh>::PrintSelf(std:
 {
   Superclass::PrintSelf(os, indent);
   os << indent << "NumberOfPoints: " << m_NumberOfPoints << std::endl;
+  os << indent << "Mode: " << m_Mode << std::endl;
+  os << indent << "DomainSigma: " << m_DomainSigma << std::endl;
+  os << indent << "RangeSigma: " << m_RangeSigma << std::endl;
+  os << indent << "Alpha: " << m_Alpha << std::endl;
   os << indent << "SquaredError: " << m_SquaredError << std::endl;
   os << indent << "MeanSquaredError: " << m_MeanSquaredError << std::endl;
+  os << indent << "SmoothedPSNR: " << m_SmoothedPSNR << std::endl;
 }
 
 } // namespace itk

@@ -21,6 +21,7 @@
 #include "dcvTestUtilities.h"
 
 #include <cstring>
+#include <map>
 
 namespace
 {
@@ -110,10 +111,14 @@ TEST(RefinementEngine, CellErrorsSumToTheBruteForceTotal)
 
 /** Engine output against a decoder that knows only the points and values. */
 void
-ExpectDecoderEqualsEngine(const std::vector<float> & image, const GridSize & grid, std::size_t points)
+ExpectDecoderEqualsEngine(const std::vector<float> &   image,
+                          const GridSize &             grid,
+                          std::size_t                  points,
+                          const RefinementParameters & parameters = {})
 {
-  RefinementEngine engine(image.data(), grid);
-  engine.Refine(points);
+  RefinementEngine engine(image.data(), grid, parameters);
+  engine.Approximate(points);
+  EXPECT_EQ(engine.GetNumberOfPoints(), points);
   const Approximation fromEngine = engine.GetApproximation();
   std::vector<float>  engineOutput(grid.NumberOfVoxels(), std::nanf(""));
   Rasterize(fromEngine, engineOutput.data());
@@ -156,6 +161,162 @@ TEST(RefinementEngine, DecoderEqualsEngineOnRealMR)
   DCV_REQUIRE_DATA("head-mr.nrrd");
   const test::Volume v = test::ReadVolume("head-mr.nrrd");
   ExpectDecoderEqualsEngine(v.voxels, v.grid, 4000);
+}
+
+/** A smoothed copy of a volume (3x3x3 box mean), standing in for the bilateral I* in engine tests. */
+std::vector<float>
+Smoothed(const std::vector<float> & image, const GridSize & g)
+{
+  std::vector<float> out(image.size());
+  for (int32_t z = 0; z < g.z; ++z)
+    for (int32_t y = 0; y < g.y; ++y)
+      for (int32_t x = 0; x < g.x; ++x)
+      {
+        double sum = 0.0;
+        int    n = 0;
+        for (int dz = -1; dz <= 1; ++dz)
+          for (int dy = -1; dy <= 1; ++dy)
+            for (int dx = -1; dx <= 1; ++dx)
+            {
+              const int32_t a = x + dx, b = y + dy, c = z + dz;
+              if (a >= 0 && b >= 0 && c >= 0 && a < g.x && b < g.y && c < g.z)
+              {
+                sum += image[g.Offset(a, b, c)];
+                ++n;
+              }
+            }
+        out[g.Offset(x, y, z)] = float(sum / n);
+      }
+  return out;
+}
+
+RefinementParameters
+ParametersFor(Mode mode, const std::vector<float> & smoothed)
+{
+  RefinementParameters p = ParametersForMode(mode);
+  if (UsesSmoothedImage(mode))
+  {
+    p.smoothed = smoothed.data();
+  }
+  p.valueMin = 0.0;
+  p.valueMax = 255.0;
+  return p;
+}
+
+TEST(RefinementEngine, DecoderEqualsEngineInEveryMode)
+{
+  DCV_REQUIRE_DATA("head-mr.nrrd");
+  const test::Volume       v = test::ReadVolume("head-mr.nrrd");
+  const std::vector<float> smoothed = Smoothed(v.voxels, v.grid);
+  for (Mode mode : { Mode::Silva, Mode::Dec, Mode::DecCom, Mode::Best })
+  {
+    SCOPED_TRACE(ModeName(mode));
+    ExpectDecoderEqualsEngine(v.voxels, v.grid, 1500, ParametersFor(mode, smoothed));
+  }
+}
+
+TEST(RefinementEngine, ModesKeepThePapersOrdering)
+{
+  DCV_REQUIRE_DATA("head-mr.nrrd");
+  const test::Volume       v = test::ReadVolume("head-mr.nrrd");
+  const std::vector<float> smoothed = Smoothed(v.voxels, v.grid);
+  std::map<Mode, double>   error;
+  for (Mode mode : { Mode::Silva, Mode::Dec, Mode::Best })
+  {
+    RefinementEngine engine(v.voxels.data(), v.grid, ParametersFor(mode, smoothed));
+    engine.Approximate(2000);
+    error[mode] = engine.GetSquaredError();
+  }
+  EXPECT_LT(error[Mode::Dec], error[Mode::Silva]);
+  EXPECT_LT(error[Mode::Best], error[Mode::Dec]);
+}
+
+TEST(RefinementEngine, DecimationLeavesTheScheduledNumberOfPoints)
+{
+  const GridSize           grid{ 32, 30, 28 };
+  const std::vector<float> image = PhantomVolume(grid);
+  RefinementEngine         engine(image.data(), grid);
+  engine.Refine(800);
+  engine.Decimate(300);
+  EXPECT_EQ(engine.GetNumberOfPoints(), 500u);
+  engine.Refine(800);
+  EXPECT_EQ(engine.GetNumberOfPoints(), 800u);
+
+  RefinementParameters withDecimation;
+  withDecimation.decimation = true;
+  RefinementEngine scheduled(image.data(), grid, withDecimation);
+  scheduled.Approximate(777);
+  EXPECT_EQ(scheduled.GetNumberOfPoints(), 777u);
+  // Accounting stays exact through removals.
+  double   cellSum = 0.0;
+  uint64_t voxels = 0;
+  for (const auto & s : scheduled.GetCellStatistics())
+  {
+    cellSum += s.squaredError;
+    voxels += s.voxels;
+  }
+  EXPECT_EQ(voxels, grid.NumberOfVoxels());
+  std::vector<float> out(grid.NumberOfVoxels());
+  Rasterize(scheduled.GetApproximation(), out.data());
+  const double sse = SquaredError(image.data(), out.data(), grid.NumberOfVoxels());
+  EXPECT_NEAR(cellSum, sse, 1e-3 * sse);
+  EXPECT_NEAR(scheduled.GetSquaredError(), sse, 1e-3 * sse);
+}
+
+TEST(RefinementEngine, EstimatedRemovalCostOfAJustInsertedVertexIsExact)
+{
+  const GridSize           grid{ 30, 28, 26 };
+  const std::vector<float> image = PhantomVolume(grid);
+  const std::vector<float> smoothed = Smoothed(image, grid);
+  for (bool combined : { false, true })
+  {
+    RefinementParameters parameters;
+    parameters.smoothed = combined ? smoothed.data() : nullptr;
+    RefinementEngine engine(image.data(), grid, parameters);
+    for (std::size_t n : { 50u, 200u, 600u })
+    {
+      engine.Refine(n);
+      const auto   v = engine.GetLastInsertedVertex();
+      const double estimate = engine.EstimateRemovalCost(v);
+      const double before = engine.GetSquaredError();
+      engine.RemoveVertex(v);
+      const double exact = engine.GetSquaredError() - before;
+      EXPECT_NEAR(estimate, exact, 1e-6 * before) << n << " points, combined " << combined;
+      EXPECT_EQ(engine.GetNumberOfPoints(), n - 1);
+    }
+  }
+}
+
+TEST(RefinementEngine, LeastSquaresValuesAreNoWorse)
+{
+  DCV_REQUIRE_DATA("headsq-ct.nrrd");
+  const test::Volume   v = test::ReadVolume("headsq-ct.nrrd");
+  RefinementParameters parameters;
+  parameters.valueMin = -32768;
+  parameters.valueMax = 32767;
+  RefinementEngine engine(v.voxels.data(), v.grid, parameters);
+  engine.Refine(3000);
+  const double before = engine.GetSquaredError();
+  const double gain = engine.OptimizeValues();
+  EXPECT_GE(gain, 0.0);
+  EXPECT_LT(engine.GetSquaredError(), before); // strictly better on real data
+  EXPECT_NEAR(before - engine.GetSquaredError(), gain, 1e-6 * before);
+  // A second solve has nothing left to gain.
+  EXPECT_LE(engine.OptimizeValues(), 1e-6 * before);
+}
+
+TEST(RefinementEngine, RefusesBadParameters)
+{
+  std::vector<float>   image(64, 1.0f);
+  RefinementParameters p;
+  p.alpha = 0.0;
+  EXPECT_THROW(RefinementEngine(image.data(), GridSize{ 4, 4, 4 }, p), std::invalid_argument);
+  p.alpha = -1.0;
+  EXPECT_THROW(RefinementEngine(image.data(), GridSize{ 4, 4, 4 }, p), std::invalid_argument);
+  EXPECT_THROW(ParseMode("fast"), std::invalid_argument);
+  EXPECT_EQ(ParseMode("dec+com"), Mode::DecCom);
+  RefinementEngine engine(image.data(), GridSize{ 4, 4, 4 });
+  EXPECT_THROW(engine.RemoveVertex(0), std::invalid_argument); // a corner
 }
 
 TEST(RefinementEngine, ErrorDecreasesAsPointsAreAdded)

@@ -73,10 +73,61 @@ TEST(DelaunayApproximationImageToMeshFilter, SetGetAndPrintSelf)
   filter->SetNumberOfPoints(3);
   EXPECT_EQ(filter->GetNumberOfPoints(), 8u); // clamped: the corners are always there
   EXPECT_EQ(filter->GetSquaredError(), 0.0);
+  EXPECT_EQ(filter->GetMode(), dcv::Mode::Best);
+  filter->SetMode(dcv::Mode::DecCom);
+  EXPECT_EQ(filter->GetMode(), dcv::Mode::DecCom);
+  EXPECT_EQ(filter->GetDomainSigma(), 1.0);
+  EXPECT_EQ(filter->GetRangeSigma(), 20.0);
+  EXPECT_EQ(filter->GetAlpha(), 0.9);
+  filter->SetAlpha(0.8);
+  EXPECT_EQ(filter->GetAlpha(), 0.8);
   std::ostringstream os;
   filter->Print(os);
   EXPECT_NE(os.str().find("NumberOfPoints: 8"), std::string::npos);
   EXPECT_NE(os.str().find("MeanSquaredError: 0"), std::string::npos);
+  EXPECT_NE(os.str().find("Mode: dec+com"), std::string::npos);
+  EXPECT_NE(os.str().find("Alpha: 0.8"), std::string::npos);
+}
+
+TEST(DelaunayApproximationImageToMeshFilter, RefusesBadParameters)
+{
+  auto image = MakePhantomImage(dcv::GridSize{ 12, 12, 12 });
+  for (int which = 0; which < 3; ++which)
+  {
+    auto approximate = ApproximationFilter::New();
+    approximate->SetInput(image);
+    approximate->SetNumberOfPoints(50);
+    if (which == 0)
+      approximate->SetAlpha(0.0);
+    if (which == 1)
+      approximate->SetDomainSigma(-1.0);
+    if (which == 2)
+      approximate->SetRangeSigma(0.0);
+    try
+    {
+      approximate->Update();
+      FAIL() << "bad parameter " << which << " accepted";
+    }
+    catch (const itk::ExceptionObject & e)
+    {
+      EXPECT_NE(std::string(e.GetDescription()).find("must be positive"), std::string::npos) << e.GetDescription();
+    }
+  }
+}
+
+TEST(DelaunayApproximationImageToMeshFilter, EveryModeRunsThroughTheFilter)
+{
+  auto image = MakePhantomImage(dcv::GridSize{ 24, 22, 20 });
+  for (dcv::Mode mode : { dcv::Mode::Silva, dcv::Mode::Dec, dcv::Mode::DecCom, dcv::Mode::Best })
+  {
+    auto approximate = ApproximationFilter::New();
+    approximate->SetInput(image);
+    approximate->SetNumberOfPoints(300);
+    approximate->SetMode(mode);
+    approximate->Update();
+    EXPECT_EQ(approximate->GetOutput()->GetNumberOfPoints(), 300u) << dcv::ModeName(mode);
+    EXPECT_GT(approximate->GetSquaredError(), 0.0);
+  }
 }
 
 TEST(TetrahedralMeshToImageFilter, SetGetAndPrintSelf)
@@ -106,6 +157,7 @@ TEST(DelaunayApproximationImageToMeshFilter, MeshInPhysicalSpaceDecodesToTheEngi
   auto                approximate = ApproximationFilter::New();
   approximate->SetInput(image);
   approximate->SetNumberOfPoints(600);
+  approximate->SetMode(dcv::Mode::Silva); // vertex values are then the image's, checked below
   int  progressEvents = 0;
   auto observer = itk::CStyleCommand::New();
   observer->SetClientData(&progressEvents);
