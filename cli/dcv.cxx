@@ -178,7 +178,7 @@ struct ApproximateOptions
   std::size_t points{ 10000 };
   std::string mode{ "best" };
   double      domainSigma{ 1.0 };
-  double      rangeSigma{ 20.0 };
+  double      rangeSigma{ 0.0 };
   double      alpha{ 0.9 };
   bool        force{ false };
   bool        quiet{ false };
@@ -246,10 +246,13 @@ RunApproximate(const ApproximateOptions & o)
   {
     throw Failure(std::string("--mode: ") + e.what());
   }
-  if (!(o.domainSigma > 0.0) || !(o.rangeSigma > 0.0))
+  if (!(o.domainSigma > 0.0))
   {
-    throw Failure("--domain-sigma and --range-sigma must be positive, got " + std::to_string(o.domainSigma) +
-                  " and " + std::to_string(o.rangeSigma));
+    throw Failure("--domain-sigma must be positive, got " + std::to_string(o.domainSigma));
+  }
+  if (!(o.rangeSigma >= 0.0))
+  {
+    throw Failure("--range-sigma must be positive, or 0 for automatic, got " + std::to_string(o.rangeSigma));
   }
   if (!(o.alpha > 0.0))
   {
@@ -328,7 +331,7 @@ main(int argc, char * argv[])
     ->add_option("--domain-sigma", approximateOptions.domainSigma, "Bilateral filter of I*: spatial sigma, voxels")
     ->capture_default_str();
   approximate
-    ->add_option("--range-sigma", approximateOptions.rangeSigma, "Bilateral filter of I*: intensity sigma")
+    ->add_option("--range-sigma", approximateOptions.rangeSigma, "Bilateral filter of I*: intensity sigma (0: 8% of the intensity range)")
     ->capture_default_str();
   approximate
     ->add_option("--alpha", approximateOptions.alpha, "Choose positions on I* until PSNR >= alpha * PSNR(I*)")

@@ -44,8 +44,9 @@ namespace itk
  *   when the approximation becomes exact earlier.
  * - Mode (default dcv::Mode::Best): silva, dec, dec+com (the paper's columns) or best (ours: all of
  *   the above plus least-squares values); see dcv::Mode.
- * - DomainSigma (default 1.0, in voxels) and RangeSigma (default 20.0, in intensity units) of the
- *   bilateral filter that makes I* (modes dec+com and best).
+ * - DomainSigma (default 1.0, in voxels) and RangeSigma (default 0: 8% of the PSNR peak, i.e. 20.4
+ *   for 8-bit data; else in intensity units) of the bilateral filter that makes I* (modes dec+com
+ *   and best).
  * - Alpha (default 0.9, > 0): positions are chosen on I* until PSNR(L) >= Alpha * PSNR(I*), then on I.
  *
  * Results after Update(): GetSquaredError() (sum over voxels of the squared difference between the
@@ -90,7 +91,8 @@ public:
   itkSetMacro(Mode, dcv::Mode);
   itkGetConstMacro(Mode, dcv::Mode);
 
-  /** Bilateral filter of I*: spatial sigma in voxels (default 1.0) and intensity sigma (default 20.0). */
+  /** Bilateral filter of I*: spatial sigma in voxels (default 1.0) and intensity sigma (default 0:
+   * 8% of the PSNR peak, so that it scales with the data's range). */
   itkSetMacro(DomainSigma, double);
   itkGetConstMacro(DomainSigma, double);
   itkSetMacro(RangeSigma, double);
@@ -143,7 +145,7 @@ private:
   SizeValueType m_NumberOfPoints{ 10000 };
   dcv::Mode     m_Mode{ dcv::Mode::Best };
   double        m_DomainSigma{ 1.0 };
-  double        m_RangeSigma{ 20.0 };
+  double        m_RangeSigma{ 0.0 };
   double        m_Alpha{ 0.9 };
   double        m_SquaredError{ 0.0 };
   double        m_MeanSquaredError{ 0.0 };

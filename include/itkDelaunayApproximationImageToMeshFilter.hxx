@@ -71,10 +71,10 @@ DelaunayApproximationImageToMeshFilter<TInputImage, TOutputMesh>::GenerateData()
     }
   }
 
-  if (m_DomainSigma <= 0.0 || m_RangeSigma <= 0.0)
+  if (!(m_DomainSigma > 0.0) || !(m_RangeSigma >= 0.0))
   {
-    itkExceptionMacro("DomainSigma and RangeSigma must be positive, got " << m_DomainSigma << " and " << m_RangeSigma
-                                                                         << ".");
+    itkExceptionMacro("DomainSigma must be positive and RangeSigma positive or 0 (automatic), got "
+                      << m_DomainSigma << " and " << m_RangeSigma << ".");
   }
   if (m_Alpha <= 0.0)
   {
@@ -119,7 +119,9 @@ DelaunayApproximationImageToMeshFilter<TInputImage, TOutputMesh>::GenerateData()
       sigmas[d] = m_DomainSigma * input->GetSpacing()[d]; // the filter measures distances in physical units
     }
     bilateral->SetDomainSigma(sigmas);
-    bilateral->SetRangeSigma(m_RangeSigma);
+    // Automatic: 8% of the peak (20.4 for 8-bit data). Measured on headsq-ct (int16, range 3926) at 634
+    // points in mode dec+com: 24.19 dB with sigma 20, 25.02 dB with 300 (dec alone: 24.41 dB).
+    bilateral->SetRangeSigma(m_RangeSigma > 0.0 ? m_RangeSigma : 0.08 * parameters.peak);
     // A kernel of 1.5 sigma instead of ITK's 2.5 (radius 2 instead of 3 at sigma 1): measured 2.3x
     // faster on norm-256 (12.5 s instead of 28-31 s) for the same I* (PSNR 47.54 vs 47.45 dB).
     bilateral->SetDomainMu(1.5);

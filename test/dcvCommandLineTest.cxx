@@ -203,7 +203,8 @@ TEST_F(CommandLine, BadMethodParameters)
   const std::string input = WriteScalar<3>("volume.nrrd", 8);
   ExpectRefused(input, { "--mode", "unknown mode 'fast'", "silva, dec, dec+com or best" }, " --mode fast");
   ExpectRefused(input, { "--alpha must be positive" }, " --alpha 0");
-  ExpectRefused(input, { "--domain-sigma and --range-sigma must be positive" }, " --domain-sigma -1");
+  ExpectRefused(input, { "--domain-sigma must be positive" }, " --domain-sigma -1");
+  ExpectRefused(input, { "--range-sigma must be positive, or 0" }, " --range-sigma -2");
   EXPECT_FALSE(fs::exists(Path("out.nrrd")));
 }
 

@@ -77,7 +77,7 @@ TEST(DelaunayApproximationImageToMeshFilter, SetGetAndPrintSelf)
   filter->SetMode(dcv::Mode::DecCom);
   EXPECT_EQ(filter->GetMode(), dcv::Mode::DecCom);
   EXPECT_EQ(filter->GetDomainSigma(), 1.0);
-  EXPECT_EQ(filter->GetRangeSigma(), 20.0);
+  EXPECT_EQ(filter->GetRangeSigma(), 0.0); // automatic
   EXPECT_EQ(filter->GetAlpha(), 0.9);
   filter->SetAlpha(0.8);
   EXPECT_EQ(filter->GetAlpha(), 0.8);
@@ -102,7 +102,7 @@ TEST(DelaunayApproximationImageToMeshFilter, RefusesBadParameters)
     if (which == 1)
       approximate->SetDomainSigma(-1.0);
     if (which == 2)
-      approximate->SetRangeSigma(0.0);
+      approximate->SetRangeSigma(-1.0);
     try
     {
       approximate->Update();
@@ -111,6 +111,7 @@ TEST(DelaunayApproximationImageToMeshFilter, RefusesBadParameters)
     catch (const itk::ExceptionObject & e)
     {
       EXPECT_NE(std::string(e.GetDescription()).find("must be positive"), std::string::npos) << e.GetDescription();
+      EXPECT_NE(std::string(e.GetDescription()).find(which == 0 ? "Alpha" : "Sigma"), std::string::npos);
     }
   }
 }
