@@ -6,6 +6,7 @@ packages=(
   cmake ninja-build g++ pkg-config
   libinsighttoolkit5-dev  # ITK 5.2: images, meshes, IO
   libcgal-dev             # Delaunay tetrahedralization (exact predicates)
+  libeigen3-dev           # sparse least squares of the vertex values
   libcli11-dev            # dcv's arguments
   libgtest-dev            # tests
 )
