@@ -68,6 +68,11 @@ struct RefinementParameters
   bool decimation{ false };
   /** Global least-squares vertex values at the end of Approximate(). */
   bool leastSquares{ false };
+  /** Quantization of the vertex values: when the step is positive every value is
+   * quantizationOrigin + k * quantizationStep (k integer), so that a decoder given the quantized values
+   * reproduces the engine's approximation exactly. */
+  double quantizationStep{ 0.0 };
+  double quantizationOrigin{ 0.0 };
   /** Range of vertex values (the pixel type's), enforced on values that are not image values. */
   double valueMin{ -1e300 };
   double valueMax{ 1e300 };

@@ -174,6 +174,28 @@ struct RefinementEngine::Impl
     return { int32_t(x), int32_t(yz % uint64_t(grid.y)), int32_t(yz / uint64_t(grid.y)) };
   }
 
+  /** The nearest allowed vertex value: on the quantization lattice (if any) and within the range. */
+  double
+  Quantize(double v) const
+  {
+    const RefinementParameters & p = parameters;
+    if (!(p.quantizationStep > 0.0))
+    {
+      return v;
+    }
+    auto at = [&p](double k) { return p.quantizationOrigin + k * p.quantizationStep; };
+    double k = std::round((v - p.quantizationOrigin) / p.quantizationStep);
+    while (at(k) > p.valueMax && at(k - 1) >= p.valueMin)
+    {
+      k -= 1;
+    }
+    while (at(k) < p.valueMin && at(k + 1) <= p.valueMax)
+    {
+      k += 1;
+    }
+    return at(k);
+  }
+
   double
   PSNROf(double sse) const
   {
@@ -228,7 +250,7 @@ struct RefinementEngine::Impl
   double
   ChooseValue(VertexId id, uint64_t voxel)
   {
-    const double imageValue = image[voxel];
+    const double imageValue = Quantize(image[voxel]);
     if (!parameters.smoothed && !parameters.localOptimalValue)
     {
       return imageValue;
@@ -260,13 +282,13 @@ struct RefinementEngine::Impl
     }
     auto   cost = [A, B](double v) { return v * v * A - 2.0 * v * B; };
     double best = imageValue;
-    if (parameters.smoothed && cost(parameters.smoothed[voxel]) < cost(best))
+    if (parameters.smoothed && cost(Quantize(parameters.smoothed[voxel])) < cost(best))
     {
-      best = parameters.smoothed[voxel];
+      best = Quantize(parameters.smoothed[voxel]);
     }
     if (parameters.localOptimalValue && A > 0.0)
     {
-      const double optimum = std::clamp(B / A, parameters.valueMin, parameters.valueMax);
+      const double optimum = Quantize(std::clamp(B / A, parameters.valueMin, parameters.valueMax));
       if (cost(optimum) < cost(best))
       {
         best = optimum;
@@ -467,6 +489,10 @@ RefinementEngine::RefinementEngine(const float * image, const GridSize & grid, c
   if (!(parameters.peak > 0.0) || !(parameters.valueMin <= parameters.valueMax))
   {
     throw std::invalid_argument("RefinementEngine: the peak must be positive and valueMin <= valueMax");
+  }
+  if (!(parameters.quantizationStep >= 0.0))
+  {
+    throw std::invalid_argument("RefinementEngine: the quantization step must be positive or 0 (none)");
   }
   Impl & d = *m_Impl;
   d.image = image;
@@ -693,13 +719,13 @@ RefinementEngine::OptimizeValues()
   {
     if (index[v] >= 0 && std::isfinite(solution[index[v]]))
     {
-      d.values[v] = std::clamp(solution[index[v]], d.parameters.valueMin, d.parameters.valueMax);
+      d.values[v] = d.Quantize(std::clamp(solution[index[v]], d.parameters.valueMin, d.parameters.valueMax));
     }
   }
   d.RescanAll();
   if (d.squaredError > before)
   {
-    d.values = old; // clamping or an unconverged solve made it worse: keep what we had
+    d.values = old; // clamping, quantization or an unconverged solve made it worse: keep what we had
     d.RescanAll();
   }
   return std::max(0.0, before - d.squaredError);

@@ -305,6 +305,29 @@ TEST(RefinementEngine, LeastSquaresValuesAreNoWorse)
   EXPECT_LE(engine.OptimizeValues(), 1e-6 * before);
 }
 
+TEST(RefinementEngine, QuantizedValuesStayOnTheLatticeAndDecodeExactly)
+{
+  const GridSize           grid{ 34, 30, 26 };
+  const std::vector<float> image = PhantomVolume(grid);
+  const std::vector<float> smoothed = Smoothed(image, grid);
+  for (Mode mode : { Mode::Silva, Mode::Best })
+  {
+    RefinementParameters p = ParametersFor(mode, smoothed);
+    p.quantizationStep = 6.0;
+    p.quantizationOrigin = 1.0;
+    RefinementEngine engine(image.data(), grid, p);
+    engine.Approximate(400);
+    for (double v : engine.GetApproximation().values)
+    {
+      const double k = (v - 1.0) / 6.0;
+      ASSERT_EQ(k, std::round(k)) << ModeName(mode) << " value " << v;
+      ASSERT_GE(v, 0.0);
+      ASSERT_LE(v, 255.0);
+    }
+    ExpectDecoderEqualsEngine(image, grid, 400, p);
+  }
+}
+
 TEST(RefinementEngine, RefusesBadParameters)
 {
   std::vector<float>   image(64, 1.0f);
