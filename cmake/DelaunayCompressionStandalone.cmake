@@ -21,6 +21,7 @@ find_package(ITK 5.2 REQUIRED COMPONENTS ${DelaunayCompression_ITK_COMPONENTS} $
 include(${ITK_USE_FILE})
 find_package(CGAL REQUIRED)
 find_package(Eigen3 3.3 REQUIRED NO_MODULE)
+find_package(ZLIB REQUIRED) # crc32 of the .dcv files
 
 # Installed programs find the module's library relative to themselves, whatever the prefix.
 file(RELATIVE_PATH _dcv_bin_to_lib "/${CMAKE_INSTALL_BINDIR}" "/${CMAKE_INSTALL_LIBDIR}")

@@ -7,6 +7,7 @@ packages=(
   libinsighttoolkit5-dev  # ITK 5.2: images, meshes, IO
   libcgal-dev             # Delaunay tetrahedralization (exact predicates)
   libeigen3-dev           # sparse least squares of the vertex values
+  zlib1g-dev              # crc32 of the .dcv files
   libcli11-dev            # dcv's arguments
   libgtest-dev            # tests
 )

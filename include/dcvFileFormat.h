@@ -1,0 +1,105 @@
+/*=========================================================================
+ *
+ *  Copyright NumFOCUS
+ *
+ *  Licensed under the Apache License, Version 2.0 (the "License");
+ *  you may not use this file except in compliance with the License.
+ *  You may obtain a copy of the License at
+ *
+ *         http://www.apache.org/licenses/LICENSE-2.0.txt
+ *
+ *  Unless required by applicable law or agreed to in writing, software
+ *  distributed under the License is distributed on an "AS IS" BASIS,
+ *  WITHOUT WARRANTIES OR CONDITIONS OF ANY KIND, either express or implied.
+ *  See the License for the specific language governing permissions and
+ *  limitations under the License.
+ *
+ *=========================================================================*/
+#ifndef dcvFileFormat_h
+#define dcvFileFormat_h
+
+#include "DelaunayCompressionExport.h"
+#include "dcvRasterizer.h"
+
+#include <array>
+#include <cstdint>
+#include <stdexcept>
+#include <string>
+#include <utility>
+#include <vector>
+
+/** \file dcvFileFormat.h
+ * The container of a .dcv file (docs/format.md): header, coded payload, optional metadata, CRC-32.
+ * One reader and one writer; the coding of the payload lives elsewhere.
+ * \ingroup DelaunayCompression
+ */
+namespace dcv
+{
+
+/** A .dcv file that cannot be read; the message names the file and the problem. */
+struct FormatError : std::runtime_error
+{
+  using std::runtime_error::runtime_error;
+};
+
+/** Pixel type of the volume a .dcv file decodes to (codes as stored in the file). */
+enum class PixelType : uint8_t
+{
+  UInt8 = 1,
+  Int8 = 2,
+  UInt16 = 3,
+  Int16 = 4,
+  UInt32 = 5,
+  Int32 = 6,
+  Float32 = 7,
+  Float64 = 8
+};
+
+DelaunayCompression_EXPORT const char *
+PixelTypeName(PixelType type);
+
+/** Everything of a .dcv file but its coded payload. */
+struct FileHeader
+{
+  static constexpr uint8_t Version = 1;
+
+  PixelType              pixelType{ PixelType::UInt8 };
+  uint8_t                mode{ 0 }; // informative: the dcv::Mode that encoded it
+  GridSize               size;
+  std::array<double, 3>  spacing{ 1.0, 1.0, 1.0 };
+  std::array<double, 3>  origin{ 0.0, 0.0, 0.0 };
+  std::array<double, 9>  direction{ 1, 0, 0, 0, 1, 0, 0, 0, 1 }; // row major
+  double                 quantizationOrigin{ 0.0 };
+  double                 quantizationStep{ 1.0 };
+  uint32_t               numberOfPoints{ 0 };
+  std::vector<std::pair<std::string, std::string>> metadata; // UTF-8 key/value pairs
+};
+
+/** The bytes of a whole file. */
+DelaunayCompression_EXPORT std::vector<uint8_t>
+                           SerializeFile(const FileHeader & header, const std::vector<uint8_t> & payload);
+
+/** Parses and checks a whole file (magic, version, sizes, lengths, CRC-32) before anything is
+ * allocated from its numbers; throws FormatError starting with `name`. */
+DelaunayCompression_EXPORT void
+ParseFile(const std::vector<uint8_t> & bytes,
+          const std::string &          name,
+          FileHeader &                 header,
+          std::vector<uint8_t> &       payload);
+
+/** Reads a whole file (FormatError naming it when it cannot be read). */
+DelaunayCompression_EXPORT std::vector<uint8_t>
+                           ReadWholeFile(const std::string & path);
+
+/** Writes a temporary file next to `path` and renames it over `path` at the end, so that a failure
+ * never leaves a partial file (FormatError naming it on failure). */
+DelaunayCompression_EXPORT void
+WriteFileAtomically(const std::string & path, const std::vector<uint8_t> & bytes);
+
+/** Whether the bytes start with the .dcv magic. */
+DelaunayCompression_EXPORT bool
+HasMagic(const uint8_t * bytes, std::size_t size);
+
+} // namespace dcv
+
+#endif

@@ -1,0 +1,411 @@
+/*=========================================================================
+ *
+ *  Copyright NumFOCUS
+ *
+ *  Licensed under the Apache License, Version 2.0 (the "License");
+ *  you may not use this file except in compliance with the License.
+ *  You may obtain a copy of the License at
+ *
+ *         http://www.apache.org/licenses/LICENSE-2.0.txt
+ *
+ *  Unless required by applicable law or agreed to in writing, software
+ *  distributed under the License is distributed on an "AS IS" BASIS,
+ *  WITHOUT WARRANTIES OR CONDITIONS OF ANY KIND, either express or implied.
+ *  See the License for the specific language governing permissions and
+ *  limitations under the License.
+ *
+ *=========================================================================*/
+#include "dcvFileFormat.h"
+
+#include <zlib.h>
+
+#include <cmath>
+#include <cstring>
+#include <filesystem>
+#include <fstream>
+#include <unistd.h>
+
+namespace dcv
+{
+namespace
+{
+// 0x89 first, as PNG does: a file that went through a text conversion is caught by the magic.
+constexpr uint8_t Magic[4] = { 0x89, 'D', 'C', 'V' };
+constexpr uint8_t FlagDirection = 1; // a non-identity direction matrix follows the origin
+constexpr uint8_t FlagMetadata = 2;  // a metadata block follows the payload
+
+class Writer
+{
+public:
+  std::vector<uint8_t> bytes;
+  void
+  U8(uint8_t v)
+  {
+    bytes.push_back(v);
+  }
+  void
+  U16(uint16_t v)
+  {
+    U8(uint8_t(v));
+    U8(uint8_t(v >> 8));
+  }
+  void
+  U32(uint32_t v)
+  {
+    for (int i = 0; i < 4; ++i)
+      U8(uint8_t(v >> (8 * i)));
+  }
+  void
+  F64(double v)
+  {
+    uint64_t u;
+    std::memcpy(&u, &v, 8);
+    for (int i = 0; i < 8; ++i)
+      U8(uint8_t(u >> (8 * i)));
+  }
+  void
+  Bytes(const uint8_t * p, std::size_t n)
+  {
+    bytes.insert(bytes.end(), p, p + n);
+  }
+};
+
+class Reader
+{
+public:
+  Reader(const std::vector<uint8_t> & b, std::size_t end, const std::string & name)
+    : m_Bytes(b)
+    , m_End(end)
+    , m_Name(name)
+  {}
+  void
+  Need(std::size_t n, const char * what)
+  {
+    if (m_End - m_Position < n)
+    {
+      throw FormatError(m_Name + ": truncated (the file ends inside the " + what + ")");
+    }
+  }
+  uint8_t
+  U8(const char * what)
+  {
+    Need(1, what);
+    return m_Bytes[m_Position++];
+  }
+  uint16_t
+  U16(const char * what)
+  {
+    Need(2, what);
+    const uint16_t v = uint16_t(m_Bytes[m_Position] | (m_Bytes[m_Position + 1] << 8));
+    m_Position += 2;
+    return v;
+  }
+  uint32_t
+  U32(const char * what)
+  {
+    Need(4, what);
+    uint32_t v = 0;
+    for (int i = 0; i < 4; ++i)
+      v |= uint32_t(m_Bytes[m_Position + i]) << (8 * i);
+    m_Position += 4;
+    return v;
+  }
+  double
+  F64(const char * what)
+  {
+    Need(8, what);
+    uint64_t u = 0;
+    for (int i = 0; i < 8; ++i)
+      u |= uint64_t(m_Bytes[m_Position + i]) << (8 * i);
+    m_Position += 8;
+    double v;
+    std::memcpy(&v, &u, 8);
+    return v;
+  }
+  std::size_t
+  Position() const
+  {
+    return m_Position;
+  }
+  std::size_t
+  Left() const
+  {
+    return m_End - m_Position;
+  }
+  void
+  Skip(std::size_t n)
+  {
+    m_Position += n;
+  }
+
+private:
+  const std::vector<uint8_t> & m_Bytes;
+  std::size_t                  m_End;
+  std::size_t                  m_Position{ 0 };
+  const std::string &          m_Name;
+};
+
+bool
+IsIdentity(const std::array<double, 9> & d)
+{
+  for (int i = 0; i < 9; ++i)
+  {
+    if (d[i] != ((i % 4 == 0) ? 1.0 : 0.0))
+      return false;
+  }
+  return true;
+}
+
+uint32_t
+Crc32(const uint8_t * p, std::size_t n)
+{
+  return uint32_t(crc32(crc32(0L, Z_NULL, 0), p, uInt(n)));
+}
+} // namespace
+
+const char *
+PixelTypeName(PixelType type)
+{
+  switch (type)
+  {
+    case PixelType::UInt8:
+      return "uint8";
+    case PixelType::Int8:
+      return "int8";
+    case PixelType::UInt16:
+      return "uint16";
+    case PixelType::Int16:
+      return "int16";
+    case PixelType::UInt32:
+      return "uint32";
+    case PixelType::Int32:
+      return "int32";
+    case PixelType::Float32:
+      return "float32";
+    case PixelType::Float64:
+      return "float64";
+  }
+  return "unknown";
+}
+
+bool
+HasMagic(const uint8_t * bytes, std::size_t size)
+{
+  return size >= 4 && std::memcmp(bytes, Magic, 4) == 0;
+}
+
+std::vector<uint8_t>
+SerializeFile(const FileHeader & h, const std::vector<uint8_t> & payload)
+{
+  for (int32_t n : { h.size.x, h.size.y, h.size.z })
+  {
+    if (n < 2 || n > MaximumGridExtent)
+    {
+      throw std::invalid_argument("a .dcv volume needs 2 to 65535 voxels along each axis");
+    }
+  }
+  if (payload.size() > 0xffffffffu)
+  {
+    throw std::invalid_argument("the coded payload exceeds 4 GiB");
+  }
+  Writer        w;
+  const bool    direction = !IsIdentity(h.direction);
+  const bool    metadata = !h.metadata.empty();
+  w.Bytes(Magic, 4);
+  w.U8(FileHeader::Version);
+  w.U8(uint8_t(h.pixelType));
+  w.U8(uint8_t((direction ? FlagDirection : 0) | (metadata ? FlagMetadata : 0)));
+  w.U8(h.mode);
+  w.U16(uint16_t(h.size.x));
+  w.U16(uint16_t(h.size.y));
+  w.U16(uint16_t(h.size.z));
+  for (double v : h.spacing)
+    w.F64(v);
+  for (double v : h.origin)
+    w.F64(v);
+  if (direction)
+  {
+    for (double v : h.direction)
+      w.F64(v);
+  }
+  w.F64(h.quantizationOrigin);
+  w.F64(h.quantizationStep);
+  w.U32(h.numberOfPoints);
+  w.U32(uint32_t(payload.size()));
+  w.Bytes(payload.data(), payload.size());
+  if (metadata)
+  {
+    Writer block;
+    for (const auto & kv : h.metadata)
+    {
+      block.U32(uint32_t(kv.first.size()));
+      block.Bytes(reinterpret_cast<const uint8_t *>(kv.first.data()), kv.first.size());
+      block.U32(uint32_t(kv.second.size()));
+      block.Bytes(reinterpret_cast<const uint8_t *>(kv.second.data()), kv.second.size());
+    }
+    w.U32(uint32_t(h.metadata.size()));
+    w.U32(uint32_t(block.bytes.size()));
+    w.Bytes(block.bytes.data(), block.bytes.size());
+  }
+  w.U32(Crc32(w.bytes.data(), w.bytes.size()));
+  return w.bytes;
+}
+
+void
+ParseFile(const std::vector<uint8_t> & bytes, const std::string & name, FileHeader & h, std::vector<uint8_t> & payload)
+{
+  if (bytes.size() < 4 || !HasMagic(bytes.data(), bytes.size()))
+  {
+    throw FormatError(name + ": not a .dcv file (wrong magic bytes)");
+  }
+  if (bytes.size() < 5)
+  {
+    throw FormatError(name + ": truncated (the file ends inside the header)");
+  }
+  if (bytes[4] != FileHeader::Version)
+  {
+    throw FormatError(name + ": .dcv version " + std::to_string(bytes[4]) + " is not supported (this reader knows " +
+                      std::to_string(FileHeader::Version) + ")");
+  }
+  if (bytes.size() < 9)
+  {
+    throw FormatError(name + ": truncated (the file ends inside the header)");
+  }
+  // The checksum covers everything before it: check it first, so that a damaged number is never used.
+  const std::size_t body = bytes.size() - 4;
+  uint32_t          stored = 0;
+  for (int i = 0; i < 4; ++i)
+    stored |= uint32_t(bytes[body + i]) << (8 * i);
+  if (Crc32(bytes.data(), body) != stored)
+  {
+    throw FormatError(name + ": damaged or truncated (CRC-32 mismatch)");
+  }
+  Reader r(bytes, body, name);
+  r.Skip(5);
+  const uint8_t type = r.U8("header");
+  if (type < 1 || type > 8)
+  {
+    throw FormatError(name + ": unknown pixel type code " + std::to_string(type));
+  }
+  h.pixelType = PixelType(type);
+  const uint8_t flags = r.U8("header");
+  if (flags & ~(FlagDirection | FlagMetadata))
+  {
+    throw FormatError(name + ": unknown header flags " + std::to_string(flags));
+  }
+  h.mode = r.U8("header");
+  h.size.x = r.U16("header");
+  h.size.y = r.U16("header");
+  h.size.z = r.U16("header");
+  if (h.size.x < 2 || h.size.y < 2 || h.size.z < 2)
+  {
+    throw FormatError(name + ": absurd volume size " + std::to_string(h.size.x) + "x" + std::to_string(h.size.y) +
+                      "x" + std::to_string(h.size.z) + " (each axis needs at least 2 voxels)");
+  }
+  for (double & v : h.spacing)
+    v = r.F64("header");
+  for (double & v : h.origin)
+    v = r.F64("header");
+  h.direction = { 1, 0, 0, 0, 1, 0, 0, 0, 1 };
+  if (flags & FlagDirection)
+  {
+    for (double & v : h.direction)
+      v = r.F64("header");
+  }
+  for (double v : h.spacing)
+  {
+    if (!(v > 0.0) || !std::isfinite(v))
+      throw FormatError(name + ": invalid voxel spacing");
+  }
+  h.quantizationOrigin = r.F64("header");
+  h.quantizationStep = r.F64("header");
+  if (!std::isfinite(h.quantizationOrigin) || !(h.quantizationStep > 0.0) || !std::isfinite(h.quantizationStep))
+  {
+    throw FormatError(name + ": invalid value quantization");
+  }
+  h.numberOfPoints = r.U32("header");
+  if (h.numberOfPoints < 8 || uint64_t(h.numberOfPoints) > h.size.NumberOfVoxels())
+  {
+    throw FormatError(name + ": absurd point count " + std::to_string(h.numberOfPoints) + " for " +
+                      std::to_string(h.size.NumberOfVoxels()) + " voxels");
+  }
+  const uint32_t length = r.U32("header");
+  if (length > r.Left())
+  {
+    throw FormatError(name + ": truncated (the payload is " + std::to_string(length) + " bytes, " +
+                      std::to_string(r.Left()) + " remain)");
+  }
+  payload.assign(bytes.begin() + std::ptrdiff_t(r.Position()), bytes.begin() + std::ptrdiff_t(r.Position() + length));
+  r.Skip(length);
+  h.metadata.clear();
+  if (flags & FlagMetadata)
+  {
+    const uint32_t count = r.U32("metadata");
+    const uint32_t size = r.U32("metadata");
+    if (size != r.Left() || count > size / 8)
+    {
+      throw FormatError(name + ": inconsistent metadata block");
+    }
+    for (uint32_t i = 0; i < count; ++i)
+    {
+      std::string kv[2];
+      for (auto & s : kv)
+      {
+        const uint32_t n = r.U32("metadata");
+        r.Need(n, "metadata");
+        s.assign(reinterpret_cast<const char *>(bytes.data() + r.Position()), n);
+        r.Skip(n);
+      }
+      h.metadata.emplace_back(kv[0], kv[1]);
+    }
+  }
+  if (r.Left() != 0)
+  {
+    throw FormatError(name + ": " + std::to_string(r.Left()) + " unexpected bytes before the checksum");
+  }
+}
+
+std::vector<uint8_t>
+ReadWholeFile(const std::string & path)
+{
+  std::error_code error;
+  if (!std::filesystem::is_regular_file(path, error))
+  {
+    throw FormatError("'" + path + "': no such file");
+  }
+  std::ifstream in(path, std::ios::binary);
+  if (!in)
+  {
+    throw FormatError("'" + path + "': cannot be opened");
+  }
+  return std::vector<uint8_t>((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
+}
+
+void
+WriteFileAtomically(const std::string & path, const std::vector<uint8_t> & bytes)
+{
+  namespace fs = std::filesystem;
+  const fs::path target(path);
+  const fs::path temporary =
+    target.parent_path() / (".dcv-" + std::to_string(::getpid()) + "-" + target.filename().string() + ".tmp");
+  {
+    std::ofstream out(temporary, std::ios::binary | std::ios::trunc);
+    out.write(reinterpret_cast<const char *>(bytes.data()), std::streamsize(bytes.size()));
+    out.close();
+    if (!out)
+    {
+      std::error_code ignored;
+      fs::remove(temporary, ignored);
+      throw FormatError("'" + path + "': cannot be written");
+    }
+  }
+  std::error_code error;
+  fs::rename(temporary, target, error);
+  if (error)
+  {
+    fs::remove(temporary, error);
+    throw FormatError("'" + path + "': cannot be written (rename failed)");
+  }
+}
+
+} // namespace dcv

@@ -1,0 +1,182 @@
+/*=========================================================================
+ *
+ *  Copyright NumFOCUS
+ *
+ *  Licensed under the Apache License, Version 2.0 (the "License");
+ *  you may not use this file except in compliance with the License.
+ *  You may obtain a copy of the License at
+ *
+ *         http://www.apache.org/licenses/LICENSE-2.0.txt
+ *
+ *  Unless required by applicable law or agreed to in writing, software
+ *  distributed under the License is distributed on an "AS IS" BASIS,
+ *  WITHOUT WARRANTIES OR CONDITIONS OF ANY KIND, either express or implied.
+ *  See the License for the specific language governing permissions and
+ *  limitations under the License.
+ *
+ *=========================================================================*/
+// The .dcv container: round trips, and a clear error for every kind of damage.
+#include "dcvFileFormat.h"
+#include "dcvTestUtilities.h"
+
+#include <fstream>
+#include <unistd.h>
+#include <zlib.h>
+
+namespace
+{
+using namespace dcv;
+
+FileHeader
+SampleHeader(bool withDirectionAndMetadata)
+{
+  FileHeader h;
+  h.pixelType = PixelType::Int16;
+  h.mode = 3;
+  h.size = GridSize{ 64, 64, 93 };
+  h.spacing = { 3.2, 3.2, 1.5 };
+  h.origin = { -10.5, 20.25, 7.0 };
+  h.quantizationOrigin = -1024.0;
+  h.quantizationStep = 4.0;
+  h.numberOfPoints = 634;
+  if (withDirectionAndMetadata)
+  {
+    h.direction = { 0, 1, 0, -1, 0, 0, 0, 0, 1 };
+    h.metadata = { { "PatientID", "anon-7" }, { "Modality", "CT" }, { "Note", "é ü 中文" } };
+  }
+  return h;
+}
+
+std::string
+ParseError(const std::vector<uint8_t> & bytes)
+{
+  FileHeader           h;
+  std::vector<uint8_t> payload;
+  try
+  {
+    ParseFile(bytes, "x.dcv", h, payload);
+  }
+  catch (const FormatError & e)
+  {
+    return e.what();
+  }
+  return "";
+}
+
+TEST(FileFormat, RoundTrip)
+{
+  for (bool full : { false, true })
+  {
+    const FileHeader           in = SampleHeader(full);
+    const std::vector<uint8_t> payload{ 1, 2, 3, 250, 0, 7 };
+    const auto                 bytes = SerializeFile(in, payload);
+    FileHeader                 out;
+    std::vector<uint8_t>       decoded;
+    ParseFile(bytes, "x.dcv", out, decoded);
+    EXPECT_EQ(decoded, payload);
+    EXPECT_EQ(out.pixelType, in.pixelType);
+    EXPECT_EQ(out.mode, in.mode);
+    EXPECT_EQ(out.size.x, 64);
+    EXPECT_EQ(out.size.z, 93);
+    EXPECT_EQ(out.spacing, in.spacing);
+    EXPECT_EQ(out.origin, in.origin);
+    EXPECT_EQ(out.direction, in.direction);
+    EXPECT_EQ(out.quantizationOrigin, in.quantizationOrigin);
+    EXPECT_EQ(out.quantizationStep, in.quantizationStep);
+    EXPECT_EQ(out.numberOfPoints, in.numberOfPoints);
+    EXPECT_EQ(out.metadata, in.metadata);
+  }
+}
+
+TEST(FileFormat, HeaderOverheadIsUnder100Bytes)
+{
+  const auto bytes = SerializeFile(SampleHeader(false), {});
+  EXPECT_LT(bytes.size(), 100u); // header and checksum around an empty payload
+}
+
+TEST(FileFormat, WrongMagicAndUnknownVersion)
+{
+  auto bytes = SerializeFile(SampleHeader(false), { 9, 9 });
+  auto wrong = bytes;
+  wrong[1] = 'X';
+  EXPECT_NE(ParseError(wrong).find("not a .dcv file"), std::string::npos);
+  auto future = bytes;
+  future[4] = 2;
+  EXPECT_NE(ParseError(future).find("version 2 is not supported"), std::string::npos);
+  EXPECT_NE(ParseError({}).find("not a .dcv file"), std::string::npos);
+}
+
+TEST(FileFormat, TruncationAtAnyByteIsDetected)
+{
+  const auto bytes = SerializeFile(SampleHeader(true), std::vector<uint8_t>(50, 0x5a));
+  for (std::size_t n = 0; n < bytes.size(); ++n)
+  {
+    const std::string error = ParseError(std::vector<uint8_t>(bytes.begin(), bytes.begin() + std::ptrdiff_t(n)));
+    ASSERT_FALSE(error.empty()) << "truncated to " << n << " bytes was accepted";
+    ASSERT_EQ(error.rfind("x.dcv: ", 0), 0u) << error;
+  }
+}
+
+TEST(FileFormat, AFlippedBitAnywhereIsDetected)
+{
+  const auto bytes = SerializeFile(SampleHeader(true), std::vector<uint8_t>(40, 0x33));
+  for (std::size_t i = 0; i < bytes.size(); ++i)
+  {
+    for (int bit = 0; bit < 8; ++bit)
+    {
+      auto damaged = bytes;
+      damaged[i] ^= uint8_t(1u << bit);
+      ASSERT_FALSE(ParseError(damaged).empty()) << "byte " << i << " bit " << bit;
+    }
+  }
+}
+
+/** A file with a consistent checksum but absurd numbers: what a malicious or buggy writer makes. */
+std::vector<uint8_t>
+Reseal(std::vector<uint8_t> bytes)
+{
+  bytes.resize(bytes.size() - 4);
+  FileHeader           h;
+  std::vector<uint8_t> unused;
+  const uint32_t       crc = uint32_t(::crc32(::crc32(0L, Z_NULL, 0), bytes.data(), uInt(bytes.size())));
+  for (int i = 0; i < 4; ++i)
+    bytes.push_back(uint8_t(crc >> (8 * i)));
+  return bytes;
+}
+
+TEST(FileFormat, AbsurdNumbersAreRefusedBeforeAllocating)
+{
+  const auto bytes = SerializeFile(SampleHeader(false), { 1, 2, 3 });
+  auto       tooManyPoints = bytes;
+  // numberOfPoints sits 8 bytes before the payload (after it: payload length).
+  const std::size_t pointsAt = bytes.size() - 4 - 3 - 8;
+  tooManyPoints[pointsAt + 3] = 0x7f;
+  EXPECT_NE(ParseError(Reseal(tooManyPoints)).find("absurd point count"), std::string::npos);
+  auto hugePayload = bytes;
+  hugePayload[pointsAt + 4 + 3] = 0x7f;
+  EXPECT_NE(ParseError(Reseal(hugePayload)).find("truncated (the payload is"), std::string::npos);
+  auto flat = bytes;
+  flat[8] = 1; // size x = 1
+  flat[9] = 0;
+  EXPECT_NE(ParseError(Reseal(flat)).find("absurd volume size"), std::string::npos);
+  auto type = bytes;
+  type[5] = 99;
+  EXPECT_NE(ParseError(Reseal(type)).find("unknown pixel type"), std::string::npos);
+}
+
+TEST(FileFormat, AtomicWriteReplacesOnlyAtTheEnd)
+{
+  namespace fs = std::filesystem;
+  const fs::path directory = fs::temp_directory_path() / ("dcv-format-" + std::to_string(::getpid()));
+  fs::create_directories(directory);
+  const std::string path = (directory / "a.dcv").string();
+  const auto        bytes = SerializeFile(SampleHeader(false), { 4, 5 });
+  WriteFileAtomically(path, bytes);
+  EXPECT_EQ(ReadWholeFile(path), bytes);
+  EXPECT_EQ(std::distance(fs::directory_iterator(directory), fs::directory_iterator()), 1); // no temporary left
+  EXPECT_THROW(WriteFileAtomically((directory / "missing" / "b.dcv").string(), bytes), FormatError);
+  EXPECT_THROW(ReadWholeFile((directory / "none.dcv").string()), FormatError);
+  fs::remove_all(directory);
+}
+
+} // namespace
