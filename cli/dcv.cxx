@@ -17,6 +17,8 @@
  *=========================================================================*/
 // dcv: the command-line face of the DelaunayCompression module.
 #include "dcvApproximation.h"
+#include "dcvCodec.h"
+#include "dcvFileFormat.h"
 #include "dcvPhantom.h"
 #include "dcvVolumeHeader.h"
 #include "itkDelaunayApproximationImageToMeshFilter.h"
@@ -49,7 +51,7 @@ using dcv::Quoted;
 
 /** Refuses to clobber an existing file unless forced, and checks that ITK can write the format. */
 void
-CheckOutput(const std::string & output, bool force)
+CheckOutput(const std::string & output, bool force, bool compressed = false)
 {
   if (fs::exists(output) && !force)
   {
@@ -64,7 +66,14 @@ CheckOutput(const std::string & output, bool force)
   {
     throw Failure("cannot write " + Quoted(output) + ": directory " + Quoted(parent.string()) + " does not exist");
   }
-  if (!itk::ImageIOFactory::CreateImageIO(output.c_str(), itk::IOFileModeEnum::WriteMode))
+  if (compressed)
+  {
+    if (fs::path(output).extension() != ".dcv")
+    {
+      throw Failure("cannot write " + Quoted(output) + ": a compressed volume's file name ends in .dcv");
+    }
+  }
+  else if (!itk::ImageIOFactory::CreateImageIO(output.c_str(), itk::IOFileModeEnum::WriteMode))
   {
     throw Failure("cannot write " + Quoted(output) + ": no image format is known for that file name "
                   "(use .nrrd, .nii.gz, .mha, ...)");
@@ -180,29 +189,19 @@ struct ApproximateOptions
   double      domainSigma{ 1.0 };
   double      rangeSigma{ 0.0 };
   double      alpha{ 0.9 };
+  double      bpv{ 0.0 };  // compress: bits per voxel of the whole file (0: use --points)
+  double      step{ 0.0 }; // compress: quantization step of the values (0: automatic)
+  bool        compressed{ false }; // OUTPUT is a .dcv file
   bool        force{ false };
   bool        quiet{ false };
 };
 
-template <typename TPixel>
-void
-Approximate(const ApproximateOptions & o)
+/** The approximation filter set up from the options (shared by approximate and compress). */
+template <typename TImage>
+typename itk::DelaunayApproximationImageToMeshFilter<TImage, MeshType>::Pointer
+MakeApproximationFilter(const TImage * image, const ApproximateOptions & o)
 {
-  using ImageType = itk::Image<TPixel, Dimension>;
-  auto reader = itk::ImageFileReader<ImageType>::New();
-  reader->SetFileName(o.input);
-  try
-  {
-    reader->Update();
-  }
-  catch (const itk::ExceptionObject & e)
-  {
-    throw Failure("cannot read " + Quoted(o.input) + ": " + e.GetDescription());
-  }
-  const ImageType * image = reader->GetOutput();
-
-  const auto start = std::chrono::steady_clock::now();
-  auto       approximate = itk::DelaunayApproximationImageToMeshFilter<ImageType, MeshType>::New();
+  auto approximate = itk::DelaunayApproximationImageToMeshFilter<TImage, MeshType>::New();
   approximate->SetInput(image);
   approximate->SetNumberOfPoints(o.points);
   approximate->SetMode(dcv::ParseMode(o.mode));
@@ -210,6 +209,35 @@ Approximate(const ApproximateOptions & o)
   approximate->SetRangeSigma(o.rangeSigma);
   approximate->SetAlpha(o.alpha);
   Observe(approximate, "approximating", o.quiet);
+  return approximate;
+}
+
+template <typename TImage>
+typename TImage::Pointer
+ReadTypedImage(const std::string & path)
+{
+  auto reader = itk::ImageFileReader<TImage>::New();
+  reader->SetFileName(path);
+  try
+  {
+    reader->Update();
+  }
+  catch (const itk::ExceptionObject & e)
+  {
+    throw Failure("cannot read " + Quoted(path) + ": " + e.GetDescription());
+  }
+  return reader->GetOutput();
+}
+
+template <typename TPixel>
+void
+Approximate(const ApproximateOptions & o)
+{
+  using ImageType = itk::Image<TPixel, Dimension>;
+  const auto image = ReadTypedImage<ImageType>(o.input);
+
+  const auto start = std::chrono::steady_clock::now();
+  auto       approximate = MakeApproximationFilter<ImageType>(image, o);
   auto rasterize = itk::TetrahedralMeshToImageFilter<MeshType, ImageType>::New();
   rasterize->SetInput(approximate->GetOutput());
   rasterize->SetReferenceImage(image);
@@ -218,6 +246,7 @@ Approximate(const ApproximateOptions & o)
 
   const ImageType * result = rasterize->GetOutput();
   const auto        n = image->GetBufferedRegion().GetNumberOfPixels();
+
   const double      error = dcv::SquaredError(image->GetBufferPointer(), result->GetBufferPointer(), n);
   const double      psnr = dcv::PSNR(error, n, Peak(image->GetBufferPointer(), n));
   WriteImage(result, o.output);
@@ -230,8 +259,257 @@ Approximate(const ApproximateOptions & o)
   }
 }
 
+template <typename T>
+constexpr dcv::PixelType
+PixelTypeOf()
+{
+  using dcv::PixelType;
+  if constexpr (std::is_same<T, uint8_t>::value)
+    return PixelType::UInt8;
+  else if constexpr (std::is_same<T, int8_t>::value)
+    return PixelType::Int8;
+  else if constexpr (std::is_same<T, uint16_t>::value)
+    return PixelType::UInt16;
+  else if constexpr (std::is_same<T, int16_t>::value)
+    return PixelType::Int16;
+  else if constexpr (std::is_same<T, uint32_t>::value)
+    return PixelType::UInt32;
+  else if constexpr (std::is_same<T, int32_t>::value)
+    return PixelType::Int32;
+  else if constexpr (std::is_same<T, float>::value)
+    return PixelType::Float32;
+  else
+    return PixelType::Float64;
+}
+
+/** Decodes a .dcv file's bytes into an image of its pixel type, in its physical space. */
+template <typename TPixel>
+typename itk::Image<TPixel, Dimension>::Pointer
+DecodeImage(const dcv::FileHeader & header, const std::vector<uint8_t> & payload, const std::string & name)
+{
+  using ImageType = itk::Image<TPixel, Dimension>;
+  const dcv::Approximation a = dcv::DecodePayload(
+    payload, header.size, header.numberOfPoints, header.quantizationOrigin, header.quantizationStep, name);
+  auto                     image = ImageType::New();
+  typename ImageType::SizeType size;
+  size[0] = itk::SizeValueType(header.size.x);
+  size[1] = itk::SizeValueType(header.size.y);
+  size[2] = itk::SizeValueType(header.size.z);
+  image->SetRegions(size);
+  typename ImageType::SpacingType   spacing;
+  typename ImageType::PointType     origin;
+  typename ImageType::DirectionType direction;
+  for (unsigned int i = 0; i < 3; ++i)
+  {
+    spacing[i] = header.spacing[i];
+    origin[i] = header.origin[i];
+    for (unsigned int j = 0; j < 3; ++j)
+      direction(i, j) = header.direction[3 * i + j];
+  }
+  image->SetSpacing(spacing);
+  image->SetOrigin(origin);
+  image->SetDirection(direction);
+  image->Allocate();
+  dcv::Rasterize(a, image->GetBufferPointer());
+  return image;
+}
+
+template <typename TPixel>
 void
-RunApproximate(const ApproximateOptions & o)
+Compress(const ApproximateOptions & o)
+{
+  using ImageType = itk::Image<TPixel, Dimension>;
+  const auto   image = ReadTypedImage<ImageType>(o.input);
+  const auto   start = std::chrono::steady_clock::now();
+  const auto   region = image->GetBufferedRegion();
+  const auto   n = region.GetNumberOfPixels();
+  const double peak = Peak(image->GetBufferPointer(), n);
+  // Automatic step: 1/64 of the peak (4 for 8-bit data), rounded to a whole number for integer data.
+  double step = o.step > 0.0 ? o.step : peak / 64.0;
+  if (std::is_integral<TPixel>::value)
+  {
+    step = std::max(1.0, std::round(step));
+  }
+
+  dcv::FileHeader header;
+  header.pixelType = PixelTypeOf<TPixel>();
+  header.mode = uint8_t(dcv::ParseMode(o.mode));
+  header.size = dcv::GridSize{ int32_t(region.GetSize()[0]), int32_t(region.GetSize()[1]), int32_t(region.GetSize()[2]) };
+  for (unsigned int i = 0; i < 3; ++i)
+  {
+    header.spacing[i] = image->GetSpacing()[i];
+    for (unsigned int j = 0; j < 3; ++j)
+      header.direction[3 * i + j] = image->GetDirection()(i, j);
+  }
+  itk::Point<double, 3> first;
+  image->TransformIndexToPhysicalPoint(region.GetIndex(), first);
+  for (unsigned int i = 0; i < 3; ++i)
+    header.origin[i] = first[i];
+  header.quantizationStep = step;
+
+  auto approximate = MakeApproximationFilter<ImageType>(image, o);
+  approximate->SetQuantizationStep(step);
+  // Encodes with a point count; the mesh's points lie on voxels of the image.
+  auto encode = [&](std::size_t points) {
+    approximate->SetNumberOfPoints(std::max<std::size_t>(8, points));
+    approximate->Update();
+    const MeshType *   mesh = approximate->GetOutput();
+    dcv::Approximation a;
+    a.grid = header.size;
+    for (itk::IdentifierType i = 0; i < mesh->GetNumberOfPoints(); ++i)
+    {
+      const auto c = image->template TransformPhysicalPointToContinuousIndex<double>(mesh->GetPoint(i));
+      a.points.push_back({ int32_t(std::lround(c[0] - double(region.GetIndex()[0]))),
+                           int32_t(std::lround(c[1] - double(region.GetIndex()[1]))),
+                           int32_t(std::lround(c[2] - double(region.GetIndex()[2]))) });
+      a.values.push_back(mesh->GetPointData()->ElementAt(i));
+    }
+    header.quantizationOrigin = approximate->GetQuantizationOrigin();
+    header.numberOfPoints = uint32_t(a.points.size());
+    return dcv::SerializeFile(header, dcv::EncodePayload(a, header.quantizationOrigin, step));
+  };
+  std::vector<uint8_t> bytes;
+  if (o.bpv > 0.0)
+  {
+    // Rate control: the size is nearly linear in the point count, so each run predicts the count
+    // that fills the budget from the bits per point it measured; 97% to 100% of the budget is
+    // usually reached at the second or third run.
+    const double budget = std::floor(o.bpv * double(n) / 8.0);
+    const double overhead = 100.0;
+    std::size_t  points = std::size_t(std::max(8.0, (budget - overhead) * 8.0 / 24.0));
+    std::vector<uint8_t> best;
+    for (int run = 0; run < 6; ++run)
+    {
+      bytes = encode(points);
+      const double size = double(bytes.size());
+      if (size <= budget && size > double(best.size()))
+      {
+        best = bytes;
+      }
+      if (size <= budget && size >= 0.97 * budget)
+      {
+        break;
+      }
+      const double bitsPerPoint = std::max(1.0, (size - overhead) * 8.0 / double(points));
+      const double target = size > budget ? 0.985 : 0.99;
+      const std::size_t next = std::size_t(std::max(8.0, (budget * target - overhead) * 8.0 / bitsPerPoint));
+      if (next == points)
+      {
+        points = size > budget ? points - std::max<std::size_t>(1, points / 100) : points + std::max<std::size_t>(1, points / 100);
+      }
+      else
+      {
+        points = next;
+      }
+    }
+    if (best.empty())
+    {
+      throw Failure("cannot fit " + Quoted(o.input) + " into " + std::to_string(std::size_t(budget)) +
+                    " bytes (--bpv " + std::to_string(o.bpv) + "); even the 8 corners need more");
+    }
+    bytes = best;
+  }
+  else
+  {
+    bytes = encode(o.points);
+  }
+  dcv::WriteFileAtomically(o.output, bytes);
+  const double seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+
+  // The PSNR of what decompress will write: decode the very bytes written.
+  dcv::FileHeader      parsed;
+  std::vector<uint8_t> payload;
+  dcv::ParseFile(bytes, o.output, parsed, payload);
+  const auto   decoded = DecodeImage<TPixel>(parsed, payload, o.output);
+  const double psnr = dcv::PSNR(dcv::SquaredError(image->GetBufferPointer(), decoded->GetBufferPointer(), n), n, peak);
+  if (!o.quiet)
+  {
+    std::cout << "mode: " << o.mode << "\n"
+              << "bytes: " << bytes.size() << "\n"
+              << "bpv: " << double(bytes.size()) * 8.0 / double(n) << "\n"
+              << "points: " << parsed.numberOfPoints << "\n"
+              << "step: " << step << "\n"
+              << "PSNR: " << psnr << " dB\n"
+              << "seconds: " << seconds << "\n";
+  }
+}
+
+void
+RunDecompress(const std::string & input, const std::string & output, bool force, bool quiet)
+{
+  const auto           bytes = dcv::ReadWholeFile(input);
+  dcv::FileHeader      header;
+  std::vector<uint8_t> payload;
+  dcv::ParseFile(bytes, Quoted(input), header, payload);
+  CheckOutput(output, force);
+  const auto start = std::chrono::steady_clock::now();
+  using dcv::PixelType;
+  switch (header.pixelType)
+  {
+    case PixelType::UInt8:
+      WriteImage(DecodeImage<uint8_t>(header, payload, Quoted(input)).GetPointer(), output);
+      break;
+    case PixelType::Int8:
+      WriteImage(DecodeImage<int8_t>(header, payload, Quoted(input)).GetPointer(), output);
+      break;
+    case PixelType::UInt16:
+      WriteImage(DecodeImage<uint16_t>(header, payload, Quoted(input)).GetPointer(), output);
+      break;
+    case PixelType::Int16:
+      WriteImage(DecodeImage<int16_t>(header, payload, Quoted(input)).GetPointer(), output);
+      break;
+    case PixelType::UInt32:
+      WriteImage(DecodeImage<uint32_t>(header, payload, Quoted(input)).GetPointer(), output);
+      break;
+    case PixelType::Int32:
+      WriteImage(DecodeImage<int32_t>(header, payload, Quoted(input)).GetPointer(), output);
+      break;
+    case PixelType::Float32:
+      WriteImage(DecodeImage<float>(header, payload, Quoted(input)).GetPointer(), output);
+      break;
+    case PixelType::Float64:
+      WriteImage(DecodeImage<double>(header, payload, Quoted(input)).GetPointer(), output);
+      break;
+  }
+  if (!quiet)
+  {
+    std::cout << "seconds: " << std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count()
+              << "\n";
+  }
+}
+
+void
+RunInfo(const std::string & input)
+{
+  const auto           bytes = dcv::ReadWholeFile(input);
+  dcv::FileHeader      h;
+  std::vector<uint8_t> payload;
+  dcv::ParseFile(bytes, Quoted(input), h, payload);
+  const double voxels = double(h.size.NumberOfVoxels());
+  std::cout << "file: " << input << "\n"
+            << "version: " << int(dcv::FileHeader::Version) << "\n"
+            << "bytes: " << bytes.size() << " (payload " << payload.size() << ")\n"
+            << "bpv: " << double(bytes.size()) * 8.0 / voxels << "\n"
+            << "size: " << h.size.x << " " << h.size.y << " " << h.size.z << "\n"
+            << "pixel type: " << dcv::PixelTypeName(h.pixelType) << "\n"
+            << "spacing: " << h.spacing[0] << " " << h.spacing[1] << " " << h.spacing[2] << "\n"
+            << "origin: " << h.origin[0] << " " << h.origin[1] << " " << h.origin[2] << "\n"
+            << "direction:";
+  for (double d : h.direction)
+    std::cout << " " << d;
+  std::cout << "\n"
+            << "mode: " << (h.mode <= 3 ? dcv::ModeName(dcv::Mode(h.mode)) : "unknown") << "\n"
+            << "points: " << h.numberOfPoints << "\n"
+            << "quantization: " << h.quantizationOrigin << " + k * " << h.quantizationStep << "\n";
+  for (const auto & kv : h.metadata)
+    std::cout << "metadata: " << kv.first << " = " << kv.second << "\n";
+}
+
+/** Checks the options shared by approximate and compress, then runs `Action<T>` for the input's
+ * pixel type. */
+template <template <typename> class Action>
+void
+Dispatch(const ApproximateOptions & o)
 {
   auto io = dcv::ReadVolumeHeader(o.input);
   if (o.points < 8)
@@ -258,31 +536,54 @@ RunApproximate(const ApproximateOptions & o)
   {
     throw Failure("--alpha must be positive, got " + std::to_string(o.alpha));
   }
-  CheckOutput(o.output, o.force);
+  if (!(o.bpv >= 0.0) || !(o.step >= 0.0))
+  {
+    throw Failure("--bpv and --step must be positive (or 0: not set)");
+  }
+  CheckOutput(o.output, o.force, o.compressed);
   using C = itk::IOComponentEnum;
   switch (io->GetComponentType())
   {
     case C::UCHAR:
-      return Approximate<uint8_t>(o);
+      return Action<uint8_t>::Run(o);
     case C::CHAR:
-      return Approximate<int8_t>(o);
+      return Action<int8_t>::Run(o);
     case C::USHORT:
-      return Approximate<uint16_t>(o);
+      return Action<uint16_t>::Run(o);
     case C::SHORT:
-      return Approximate<int16_t>(o);
+      return Action<int16_t>::Run(o);
     case C::UINT:
-      return Approximate<uint32_t>(o);
+      return Action<uint32_t>::Run(o);
     case C::INT:
-      return Approximate<int32_t>(o);
+      return Action<int32_t>::Run(o);
     case C::FLOAT:
-      return Approximate<float>(o);
+      return Action<float>::Run(o);
     case C::DOUBLE:
-      return Approximate<double>(o);
+      return Action<double>::Run(o);
     default:
       throw Failure(Quoted(o.input) + " has " + itk::ImageIOBase::GetComponentTypeAsString(io->GetComponentType()) +
                     " voxels; dcv handles 8, 16 and 32-bit integers, float and double");
   }
 }
+
+template <typename T>
+struct ApproximateAction
+{
+  static void
+  Run(const ApproximateOptions & o)
+  {
+    Approximate<T>(o);
+  }
+};
+template <typename T>
+struct CompressAction
+{
+  static void
+  Run(const ApproximateOptions & o)
+  {
+    Compress<T>(o);
+  }
+};
 
 void
 RunPhantom(const std::string & output, int size, bool force)
@@ -313,31 +614,54 @@ main(int argc, char * argv[])
   app.require_subcommand(1);
   app.set_version_flag("--version", "dcv 0.1.0");
 
+  // The method's options, shared by approximate and compress.
+  auto addMethodOptions = [](CLI::App * command, ApproximateOptions & o) {
+    command->add_option("INPUT", o.input, "Input volume (NRRD, NIfTI, MetaImage, ...)")->required();
+    command->add_option("--points,-n", o.points, "Number of significant points (at least 8)")->capture_default_str();
+    command
+      ->add_option("--mode,-m",
+                   o.mode,
+                   "silva (refinement), dec (+ decimation), dec+com (+ combined image approach: the paper's "
+                   "method), best (+ least-squares values)")
+      ->capture_default_str();
+    command->add_option("--domain-sigma", o.domainSigma, "Bilateral filter of I*: spatial sigma, voxels")
+      ->capture_default_str();
+    command
+      ->add_option("--range-sigma", o.rangeSigma, "Bilateral filter of I*: intensity sigma (0: 8% of the intensity range)")
+      ->capture_default_str();
+    command->add_option("--alpha", o.alpha, "Choose positions on I* until PSNR >= alpha * PSNR(I*)")
+      ->capture_default_str();
+    command->add_flag("--force,-f", o.force, "Overwrite OUTPUT if it exists");
+    command->add_flag("--quiet,-q", o.quiet, "Print nothing but errors");
+  };
+
   ApproximateOptions approximateOptions;
   auto * approximate = app.add_subcommand(
     "approximate", "Approximate a volume by a linear spline over an adaptive Delaunay tetrahedralization and write "
                    "the approximation with the input's geometry and pixel type; prints points, PSNR and seconds");
-  approximate->add_option("INPUT", approximateOptions.input, "Input volume (NRRD, NIfTI, MetaImage, ...)")->required();
+  addMethodOptions(approximate, approximateOptions);
   approximate->add_option("OUTPUT", approximateOptions.output, "Output volume (format from its extension)")->required();
-  approximate->add_option("--points,-n", approximateOptions.points, "Number of significant points (at least 8)")
-    ->capture_default_str();
-  approximate
-    ->add_option("--mode,-m",
-                 approximateOptions.mode,
-                 "silva (refinement), dec (+ decimation), dec+com (+ combined image approach: the paper's "
-                 "method), best (+ least-squares values)")
-    ->capture_default_str();
-  approximate
-    ->add_option("--domain-sigma", approximateOptions.domainSigma, "Bilateral filter of I*: spatial sigma, voxels")
-    ->capture_default_str();
-  approximate
-    ->add_option("--range-sigma", approximateOptions.rangeSigma, "Bilateral filter of I*: intensity sigma (0: 8% of the intensity range)")
-    ->capture_default_str();
-  approximate
-    ->add_option("--alpha", approximateOptions.alpha, "Choose positions on I* until PSNR >= alpha * PSNR(I*)")
-    ->capture_default_str();
-  approximate->add_flag("--force,-f", approximateOptions.force, "Overwrite OUTPUT if it exists");
-  approximate->add_flag("--quiet,-q", approximateOptions.quiet, "Print nothing but errors");
+
+  ApproximateOptions compressOptions;
+  compressOptions.compressed = true;
+  auto *             compress = app.add_subcommand(
+    "compress", "Compress a volume into a .dcv file; prints bytes, bpv, points, PSNR (of what decompress gives) and seconds");
+  addMethodOptions(compress, compressOptions);
+  compress->add_option("OUTPUT", compressOptions.output, "Output .dcv file")->required();
+  compress->add_option("--bpv", compressOptions.bpv, "Bits per voxel of the whole file (then --points is chosen)");
+  compress->add_option("--step", compressOptions.step, "Quantization step of the values (0: 1/64 of the peak)");
+
+  std::string decompressInput, decompressOutput;
+  bool        decompressForce = false, decompressQuiet = false;
+  auto *      decompress = app.add_subcommand("decompress", "Decode a .dcv file into any image format ITK writes");
+  decompress->add_option("INPUT", decompressInput, "Input .dcv file")->required();
+  decompress->add_option("OUTPUT", decompressOutput, "Output volume (format from its extension)")->required();
+  decompress->add_flag("--force,-f", decompressForce, "Overwrite OUTPUT if it exists");
+  decompress->add_flag("--quiet,-q", decompressQuiet, "Print nothing but errors");
+
+  std::string infoInput;
+  auto *      info = app.add_subcommand("info", "Print the header of a .dcv file");
+  info->add_option("FILE", infoInput, "A .dcv file")->required();
 
   std::string phantomOutput;
   int         phantomSize = 128;
@@ -360,7 +684,19 @@ main(int argc, char * argv[])
   {
     if (*approximate)
     {
-      RunApproximate(approximateOptions);
+      Dispatch<ApproximateAction>(approximateOptions);
+    }
+    else if (*compress)
+    {
+      Dispatch<CompressAction>(compressOptions);
+    }
+    else if (*decompress)
+    {
+      RunDecompress(decompressInput, decompressOutput, decompressForce, decompressQuiet);
+    }
+    else if (*info)
+    {
+      RunInfo(infoInput);
     }
     else if (*phantom)
     {

@@ -48,6 +48,8 @@ namespace itk
  *   for 8-bit data; else in intensity units) of the bilateral filter that makes I* (modes dec+com
  *   and best).
  * - Alpha (default 0.9, > 0): positions are chosen on I* until PSNR(L) >= Alpha * PSNR(I*), then on I.
+ * - QuantizationStep (default 0: none): vertex values are then min(I) + k * QuantizationStep, and the
+ *   refinement works with these values (what a .dcv file stores). GetQuantizationOrigin() gives min(I).
  *
  * Results after Update(): GetSquaredError() (sum over voxels of the squared difference between the
  * input and the unrounded spline) and GetMeanSquaredError().
@@ -102,6 +104,11 @@ public:
   itkSetMacro(Alpha, double);
   itkGetConstMacro(Alpha, double);
 
+  /** Step of the vertex values (default 0: not quantized); the origin is the input's minimum. */
+  itkSetMacro(QuantizationStep, double);
+  itkGetConstMacro(QuantizationStep, double);
+  itkGetConstMacro(QuantizationOrigin, double);
+
   /** Sum of squared errors of the approximation, after Update(). */
   itkGetConstMacro(SquaredError, double);
   /** Mean squared error of the approximation, after Update(). */
@@ -147,6 +154,8 @@ private:
   double        m_DomainSigma{ 1.0 };
   double        m_RangeSigma{ 0.0 };
   double        m_Alpha{ 0.9 };
+  double        m_QuantizationStep{ 0.0 };
+  double        m_QuantizationOrigin{ 0.0 };
   double        m_SquaredError{ 0.0 };
   double        m_MeanSquaredError{ 0.0 };
   double        m_SmoothedPSNR{ 0.0 };

@@ -93,15 +93,22 @@ DelaunayApproximationImageToMeshFilter<TInputImage, TOutputMesh>::GenerateData()
   parameters.alpha = m_Alpha;
   parameters.valueMin = double(NumericTraits<InputPixelType>::NonpositiveMin());
   parameters.valueMax = double(NumericTraits<InputPixelType>::max());
+  const auto range = std::minmax_element(values.begin(), values.end());
   if (sizeof(InputPixelType) == 1 && NumericTraits<InputPixelType>::is_integer)
   {
     parameters.peak = 255.0;
   }
   else
   {
-    const auto range = std::minmax_element(values.begin(), values.end());
     parameters.peak = std::max(1e-12, double(*range.second) - double(*range.first));
   }
+  if (!(m_QuantizationStep >= 0.0))
+  {
+    itkExceptionMacro("QuantizationStep must be positive or 0 (none), got " << m_QuantizationStep << ".");
+  }
+  m_QuantizationOrigin = double(*range.first);
+  parameters.quantizationStep = m_QuantizationStep;
+  parameters.quantizationOrigin = m_QuantizationOrigin;
 
   // I*: the bilateral filter of I (combined image approach), with sigmas in voxels.
   using SmoothedImageType = Image<float, 3>;
@@ -211,6 +218,8 @@ DelaunayApproximationImageToMeshFilter<TInputImage, TOutputMesh>::PrintSelf(std:
   os << indent << "DomainSigma: " << m_DomainSigma << std::endl;
   os << indent << "RangeSigma: " << m_RangeSigma << std::endl;
   os << indent << "Alpha: " << m_Alpha << std::endl;
+  os << indent << "QuantizationStep: " << m_QuantizationStep << std::endl;
+  os << indent << "QuantizationOrigin: " << m_QuantizationOrigin << std::endl;
   os << indent << "SquaredError: " << m_SquaredError << std::endl;
   os << indent << "MeanSquaredError: " << m_MeanSquaredError << std::endl;
   os << indent << "SmoothedPSNR: " << m_SmoothedPSNR << std::endl;

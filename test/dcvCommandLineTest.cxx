@@ -21,7 +21,9 @@
 #include "itkImageFileWriter.h"
 #include "itkVectorImage.h"
 
+#include <cmath>
 #include <fstream>
+#include <tuple>
 #include <sys/wait.h>
 
 namespace
@@ -224,6 +226,96 @@ TEST_F(CommandLine, ExistingOutputNeedsForce)
   EXPECT_EQ(r.status, 0) << r.output;
   using ImageType = itk::Image<uint8_t, 3>;
   EXPECT_NO_THROW(itk::ReadImage<ImageType>(output));
+}
+
+TEST_F(CommandLine, CompressDecompressInfo)
+{
+  const std::string phantom = Path("phantom.nrrd");
+  ASSERT_EQ(RunDcv("phantom " + phantom + " --size 40").status, 0);
+  const std::string packed = Path("phantom.dcv");
+  const Result      c = RunDcv("compress " + phantom + " " + packed + " --bpv 0.0625");
+  ASSERT_EQ(c.status, 0) << c.output;
+  // The whole file fits the budget and fills at least 97% of it.
+  const double budget = std::floor(0.0625 * 40 * 40 * 40 / 8);
+  const auto   bytes = fs::file_size(packed);
+  EXPECT_LE(double(bytes), budget);
+  EXPECT_GE(double(bytes), 0.97 * budget);
+  EXPECT_NE(c.output.find("bytes: " + std::to_string(bytes)), std::string::npos) << c.output;
+
+  const Result info = RunDcv("info " + packed);
+  ASSERT_EQ(info.status, 0) << info.output;
+  EXPECT_NE(info.output.find("size: 40 40 40"), std::string::npos) << info.output;
+  EXPECT_NE(info.output.find("pixel type: uint8"), std::string::npos) << info.output;
+
+  const std::string decoded = Path("decoded.nrrd");
+  const Result      d = RunDcv("decompress " + packed + " " + decoded);
+  ASSERT_EQ(d.status, 0) << d.output;
+  // The PSNR compress printed is the one of what decompress wrote.
+  using ImageType = itk::Image<uint8_t, 3>;
+  auto         in = itk::ReadImage<ImageType>(phantom);
+  auto         out = itk::ReadImage<ImageType>(decoded);
+  const auto   n = in->GetLargestPossibleRegion().GetNumberOfPixels();
+  const double psnr = dcv::PSNR(dcv::SquaredError(in->GetBufferPointer(), out->GetBufferPointer(), n), n, 255.0);
+  const double printed = std::stod(c.output.substr(c.output.find("PSNR: ") + 6));
+  EXPECT_NEAR(printed, psnr, 1e-3);
+  EXPECT_EQ(out->GetLargestPossibleRegion(), in->GetLargestPossibleRegion());
+}
+
+TEST_F(CommandLine, CompressKeepsPixelTypeAndGeometryOfRealCT)
+{
+  DCV_REQUIRE_DATA("headsq-ct.nrrd");
+  const std::string packed = Path("ct.dcv");
+  const Result c = RunDcv("compress " + dcv::test::DataFile("headsq-ct.nrrd") + " " + packed + " --points 500 -m dec");
+  ASSERT_EQ(c.status, 0) << c.output;
+  ASSERT_EQ(RunDcv("decompress " + packed + " " + Path("ct.nrrd")).status, 0);
+  using ImageType = itk::Image<int16_t, 3>;
+  auto reader = itk::ImageFileReader<ImageType>::New();
+  reader->SetFileName(Path("ct.nrrd"));
+  reader->Update();
+  auto original = itk::ReadImage<ImageType>(dcv::test::DataFile("headsq-ct.nrrd"));
+  EXPECT_EQ(reader->GetImageIO()->GetComponentType(), itk::IOComponentEnum::SHORT);
+  EXPECT_EQ(reader->GetOutput()->GetSpacing(), original->GetSpacing());
+  EXPECT_EQ(reader->GetOutput()->GetOrigin(), original->GetOrigin());
+  EXPECT_EQ(reader->GetOutput()->GetDirection(), original->GetDirection());
+}
+
+TEST_F(CommandLine, BadCompressedFiles)
+{
+  const std::string phantom = Path("phantom.nrrd");
+  ASSERT_EQ(RunDcv("phantom " + phantom + " --size 24").status, 0);
+  const std::string packed = Path("good.dcv");
+  ASSERT_EQ(RunDcv("compress " + phantom + " " + packed + " --points 100").status, 0);
+  std::ifstream        in(packed, std::ios::binary);
+  std::vector<char>    bytes((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
+  auto                 write = [&](const std::string & name, const std::vector<char> & b) {
+    std::ofstream(Path(name), std::ios::binary).write(b.data(), std::streamsize(b.size()));
+    return Path(name);
+  };
+  std::vector<char> magic = bytes;
+  magic[1] = 'X';
+  std::vector<char> truncated(bytes.begin(), bytes.begin() + std::ptrdiff_t(bytes.size() / 2));
+  std::vector<char> flipped = bytes;
+  flipped[bytes.size() / 2] ^= 0x10;
+  for (const auto & [name, content, phrase] :
+       { std::make_tuple(std::string("magic.dcv"), magic, std::string("not a .dcv file")),
+         std::make_tuple(std::string("cut.dcv"), truncated, std::string("CRC-32")),
+         std::make_tuple(std::string("flip.dcv"), flipped, std::string("CRC-32")) })
+  {
+    const std::string file = write(name, content);
+    for (const std::string command : { "decompress " + file + " " + Path("out.nrrd"), "info " + file })
+    {
+      const Result r = RunDcv(command);
+      EXPECT_NE(r.status, 0) << command;
+      EXPECT_NE(r.output.find(name), std::string::npos) << r.output;
+      EXPECT_NE(r.output.find(phrase), std::string::npos) << r.output;
+    }
+    EXPECT_FALSE(fs::exists(Path("out.nrrd")));
+  }
+  // compress refuses a name that is not .dcv, and keeps an existing file without --force.
+  EXPECT_NE(RunDcv("compress " + phantom + " " + Path("x.nrrd") + " -n 50").status, 0);
+  const Result again = RunDcv("compress " + phantom + " " + packed + " -n 50");
+  EXPECT_NE(again.status, 0);
+  EXPECT_NE(again.output.find("already exists"), std::string::npos);
 }
 
 TEST_F(CommandLine, UnknownOutputFormat)

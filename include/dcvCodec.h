@@ -1,0 +1,54 @@
+/*=========================================================================
+ *
+ *  Copyright NumFOCUS
+ *
+ *  Licensed under the Apache License, Version 2.0 (the "License");
+ *  you may not use this file except in compliance with the License.
+ *  You may obtain a copy of the License at
+ *
+ *         http://www.apache.org/licenses/LICENSE-2.0.txt
+ *
+ *  Unless required by applicable law or agreed to in writing, software
+ *  distributed under the License is distributed on an "AS IS" BASIS,
+ *  WITHOUT WARRANTIES OR CONDITIONS OF ANY KIND, either express or implied.
+ *  See the License for the specific language governing permissions and
+ *  limitations under the License.
+ *
+ *=========================================================================*/
+#ifndef dcvCodec_h
+#define dcvCodec_h
+
+#include "DelaunayCompressionExport.h"
+#include "dcvApproximation.h"
+
+#include <cstdint>
+#include <string>
+#include <vector>
+
+/** \file dcvCodec.h
+ * The payload of a .dcv file (docs/format.md): the positions (dcvPositionCoder.h), then the
+ * quantized values, each predicted from the mean of its Delaunay neighbours decoded before it and
+ * coded as an adaptive signed residual, all in one arithmetic-coded stream. The decoder rebuilds the
+ * tetrahedralization from the positions before it reads the values, and hands it on for rasterizing.
+ * \ingroup DelaunayCompression
+ */
+namespace dcv
+{
+
+/** Codes the points and values of `a` (values must be q0 + k q with integer k, |k| < 2^30). */
+DelaunayCompression_EXPORT std::vector<uint8_t>
+                           EncodePayload(const Approximation & a, double q0, double q);
+
+/** Decodes `count` points and their values, with the tetrahedra over them, ready for Rasterize().
+ * Throws FormatError starting with `name` when the payload is truncated or damaged. */
+DelaunayCompression_EXPORT Approximation
+                           DecodePayload(const std::vector<uint8_t> & payload,
+                                         const GridSize &             grid,
+                                         uint32_t                     count,
+                                         double                       q0,
+                                         double                       q,
+                                         const std::string &          name);
+
+} // namespace dcv
+
+#endif

@@ -1,0 +1,184 @@
+/*=========================================================================
+ *
+ *  Copyright NumFOCUS
+ *
+ *  Licensed under the Apache License, Version 2.0 (the "License");
+ *  you may not use this file except in compliance with the License.
+ *  You may obtain a copy of the License at
+ *
+ *         http://www.apache.org/licenses/LICENSE-2.0.txt
+ *
+ *  Unless required by applicable law or agreed to in writing, software
+ *  distributed under the License is distributed on an "AS IS" BASIS,
+ *  WITHOUT WARRANTIES OR CONDITIONS OF ANY KIND, either express or implied.
+ *  See the License for the specific language governing permissions and
+ *  limitations under the License.
+ *
+ *=========================================================================*/
+#include "dcvCodec.h"
+#include "dcvArithmeticCoder.h"
+#include "dcvFileFormat.h"
+#include "dcvPositionCoder.h"
+
+#include <algorithm>
+#include <cmath>
+#include <stdexcept>
+#include <unordered_map>
+
+namespace dcv
+{
+namespace
+{
+/** Neighbours of each vertex through the tetrahedra, as compressed rows. */
+struct Adjacency
+{
+  std::vector<uint32_t> start; // size n + 1
+  std::vector<uint32_t> neighbour;
+
+  Adjacency(std::size_t n, const std::vector<Tetrahedron> & tetrahedra)
+  {
+    std::vector<std::pair<uint32_t, uint32_t>> edges;
+    edges.reserve(tetrahedra.size() * 12);
+    for (const auto & t : tetrahedra)
+      for (int i = 0; i < 4; ++i)
+        for (int j = 0; j < 4; ++j)
+          if (i != j)
+            edges.emplace_back(t[i], t[j]);
+    std::sort(edges.begin(), edges.end());
+    edges.erase(std::unique(edges.begin(), edges.end()), edges.end());
+    start.assign(n + 1, 0);
+    for (const auto & e : edges)
+      ++start[e.first + 1];
+    for (std::size_t i = 0; i < n; ++i)
+      start[i + 1] += start[i];
+    neighbour.resize(edges.size());
+    for (std::size_t i = 0; i < edges.size(); ++i)
+      neighbour[i] = edges[i].second;
+  }
+};
+
+/** Value model: the residual against the mean of the neighbours decoded so far, with a context per
+ * how many there are (a prediction from one neighbour is rougher than one from six). */
+class ValueCoder
+{
+public:
+  static int
+  Context(int known)
+  {
+    return known == 0 ? 0 : known <= 2 ? 1 : known <= 5 ? 2 : 3;
+  }
+  /** Prediction of vertex i from the already coded vertices j < i among its neighbours. */
+  static int64_t
+  Predict(const Adjacency & adjacency, const std::vector<int64_t> & k, uint32_t i, int & known)
+  {
+    int64_t sum = 0;
+    known = 0;
+    for (uint32_t e = adjacency.start[i]; e < adjacency.start[i + 1]; ++e)
+    {
+      const uint32_t j = adjacency.neighbour[e];
+      if (j < i)
+      {
+        sum += k[j];
+        ++known;
+      }
+    }
+    if (known == 0)
+    {
+      return i > 0 ? k[i - 1] : 0;
+    }
+    return int64_t(std::floor(double(sum) / known + 0.5));
+  }
+  SIntModel residual[4];
+};
+} // namespace
+
+std::vector<uint8_t>
+EncodePayload(const Approximation & a, double q0, double q)
+{
+  if (!(q > 0.0))
+  {
+    throw std::invalid_argument("EncodePayload: the quantization step must be positive");
+  }
+  // Values follow the points in the coder's order.
+  std::unordered_map<uint64_t, double> valueAt;
+  valueAt.reserve(a.points.size());
+  for (std::size_t i = 0; i < a.points.size(); ++i)
+  {
+    valueAt[a.grid.Offset(a.points[i][0], a.points[i][1], a.points[i][2])] = a.values[i];
+  }
+  std::vector<GridPoint> points = a.points;
+  SortPositions(a.grid, points);
+  std::vector<int64_t> k(points.size());
+  for (std::size_t i = 0; i < points.size(); ++i)
+  {
+    const double v = valueAt.at(a.grid.Offset(points[i][0], points[i][1], points[i][2]));
+    const double index = std::round((v - q0) / q);
+    if (std::abs(index - (v - q0) / q) > 1e-6 || std::abs(index) >= double(1 << 30))
+    {
+      throw std::invalid_argument("EncodePayload: value " + std::to_string(v) + " is not on the quantization lattice");
+    }
+    k[i] = int64_t(index);
+  }
+  const Adjacency      adjacency(points.size(), Tetrahedralize(points));
+  std::vector<uint8_t> bytes;
+  ArithmeticEncoder    encoder(bytes);
+  EncodePositions(encoder, a.grid, points);
+  ValueCoder values;
+  for (uint32_t i = 0; i < points.size(); ++i)
+  {
+    int           known = 0;
+    const int64_t prediction = ValueCoder::Predict(adjacency, k, i, known);
+    values.residual[ValueCoder::Context(known)].Encode(encoder, int32_t(k[i] - prediction));
+  }
+  encoder.Finish();
+  return bytes;
+}
+
+Approximation
+DecodePayload(const std::vector<uint8_t> & payload,
+              const GridSize &             grid,
+              uint32_t                     count,
+              double                       q0,
+              double                       q,
+              const std::string &          name)
+{
+  ArithmeticDecoder decoder(payload.data(), payload.size());
+  Approximation     a;
+  a.grid = grid;
+  try
+  {
+    a.points = DecodePositions(decoder, grid, count);
+    CheckPoints(grid, a.points);
+  }
+  catch (const std::invalid_argument & e)
+  {
+    throw FormatError(name + ": damaged point positions (" + e.what() + ")");
+  }
+  if (decoder.Overrun())
+  {
+    throw FormatError(name + ": the payload ends inside the point positions");
+  }
+  a.tetrahedra = Tetrahedralize(a.points);
+  const Adjacency      adjacency(a.points.size(), a.tetrahedra);
+  std::vector<int64_t> k(a.points.size());
+  ValueCoder           values;
+  a.values.resize(a.points.size());
+  for (uint32_t i = 0; i < a.points.size(); ++i)
+  {
+    int           known = 0;
+    const int64_t prediction = ValueCoder::Predict(adjacency, k, i, known);
+    k[i] = prediction + values.residual[ValueCoder::Context(known)].Decode(decoder);
+    if (std::abs(k[i]) >= (int64_t(1) << 31))
+    {
+      throw FormatError(name + ": damaged values");
+    }
+    a.values[i] = q0 + double(k[i]) * q;
+  }
+  if (decoder.Overrun())
+  {
+    throw FormatError(name + ": the payload ends inside the values");
+  }
+  return a;
+}
+
+} // namespace dcv
