@@ -23,6 +23,7 @@
 #include <CGAL/Triangulation_cell_base_with_info_3.h>
 #include <CGAL/Triangulation_vertex_base_with_info_3.h>
 
+#include <algorithm>
 #include <stdexcept>
 
 namespace dcv
@@ -82,6 +83,23 @@ struct Tetrahedralization::Impl
     }
   }
 
+  // Registers the cells in `scratch` in an order fixed by their vertices: CGAL hands them over in
+  // memory order, which varies between runs, and cell ids, heap ties and error sums must not.
+  void
+  RegisterInOrder(std::vector<Cell> & created)
+  {
+    auto key = [](const CellHandle & c) {
+      std::array<VertexId, 4> k{ c->vertex(0)->info(), c->vertex(1)->info(), c->vertex(2)->info(), c->vertex(3)->info() };
+      std::sort(k.begin(), k.end());
+      return k;
+    };
+    std::sort(scratch.begin(), scratch.end(), [&key](const CellHandle & a, const CellHandle & b) { return key(a) < key(b); });
+    for (const CellHandle & c : scratch)
+    {
+      Register(c, &created);
+    }
+  }
+
   // Re-numbers every finite cell (after operations whose new cells CGAL does not report).
   void
   RegisterAll()
@@ -95,7 +113,9 @@ struct Tetrahedralization::Impl
 
 Tetrahedralization::Tetrahedralization()
   : m_Impl(std::make_unique<Impl>())
-{}
+{
+  m_Impl->dt.infinite_vertex()->info() = 0xffffffffu; // CGAL leaves it uninitialized; cell ordering reads it
+}
 
 Tetrahedralization::~Tetrahedralization() = default;
 
@@ -175,10 +195,7 @@ Tetrahedralization::Insert(const GridPoint & p, CellId hint, std::vector<CellId>
   d.vertices.push_back(v);
   d.scratch.clear();
   d.dt.incident_cells(v, std::back_inserter(d.scratch));
-  for (const CellHandle & nc : d.scratch)
-  {
-    d.Register(nc, &created);
-  }
+  d.RegisterInOrder(created);
   return id;
 }
 
@@ -205,10 +222,7 @@ Tetrahedralization::Remove(VertexId id, std::vector<CellId> & killed, std::vecto
   d.scratch.clear();
   d.dt.remove_and_give_new_cells(v, std::back_inserter(d.scratch));
   d.vertices[id] = VertexHandle();
-  for (const CellHandle & nc : d.scratch)
-  {
-    d.Register(nc, &created);
-  }
+  d.RegisterInOrder(created);
 }
 
 void
@@ -236,6 +250,8 @@ Tetrahedralization::FiniteCells() const
   {
     out.push_back(Cell{ c->info().id, { c->vertex(0)->info(), c->vertex(1)->info(), c->vertex(2)->info(), c->vertex(3)->info() } });
   }
+  // By id: an order that does not depend on memory addresses (see RegisterInOrder).
+  std::sort(out.begin(), out.end(), [](const Cell & a, const Cell & b) { return a.id < b.id; });
   return out;
 }
 
