@@ -17,6 +17,8 @@ itk_module(DelaunayCompression
     ITKIONRRD
     ITKIONIFTI
     ITKIOMeta
+  FACTORY_NAMES
+    ImageIO::DCV
   EXCLUDE_FROM_DEFAULT
   DESCRIPTION
     "${DOCUMENTATION}"

@@ -21,6 +21,7 @@
 #include "dcvFileFormat.h"
 #include "dcvPhantom.h"
 #include "dcvVolumeHeader.h"
+#include "itkDCVImageIOFactory.h"
 #include "itkDelaunayApproximationImageToMeshFilter.h"
 #include "itkTetrahedralMeshToImageFilter.h"
 
@@ -612,6 +613,7 @@ main(int argc, char * argv[])
   CLI::App app{ "dcv: lossy compression of 3D volumes by linear splines over adaptive Delaunay tetrahedralizations "
                 "(ITK module DelaunayCompression)" };
   app.require_subcommand(1);
+  itk::DCVImageIOFactory::RegisterOneFactory(); // .dcv files are volumes like any other for dcv
   app.set_version_flag("--version", "dcv 0.1.0");
 
   // The method's options, shared by approximate and compress.

@@ -1,0 +1,105 @@
+/*=========================================================================
+ *
+ *  Copyright NumFOCUS
+ *
+ *  Licensed under the Apache License, Version 2.0 (the "License");
+ *  you may not use this file except in compliance with the License.
+ *  You may obtain a copy of the License at
+ *
+ *         http://www.apache.org/licenses/LICENSE-2.0.txt
+ *
+ *  Unless required by applicable law or agreed to in writing, software
+ *  distributed under the License is distributed on an "AS IS" BASIS,
+ *  WITHOUT WARRANTIES OR CONDITIONS OF ANY KIND, either express or implied.
+ *  See the License for the specific language governing permissions and
+ *  limitations under the License.
+ *
+ *=========================================================================*/
+// ImageFileReader opens .dcv files through DCVImageIO.
+#include "dcvCodec.h"
+#include "dcvFileFormat.h"
+#include "dcvPhantom.h"
+#include "dcvRefinementEngine.h"
+#include "dcvTestUtilities.h"
+#include "itkDCVImageIO.h"
+#include "itkDCVImageIOFactory.h"
+
+#include "itkImageFileReader.h"
+
+#include <unistd.h>
+
+namespace
+{
+using namespace dcv;
+
+TEST(DCVImageIO, ImageFileReaderDecodesAFile)
+{
+  itk::DCVImageIOFactory::RegisterOneFactory();
+  itk::DCVImageIOFactory::RegisterOneFactory(); // harmless twice
+
+  const GridSize           grid{ 30, 26, 22 };
+  const auto               voxels = SheppLoganPhantom(grid);
+  const std::vector<float> image(voxels.begin(), voxels.end());
+  RefinementParameters     p = ParametersForMode(Mode::Dec);
+  p.quantizationStep = 2.0;
+  p.valueMin = 0.0;
+  p.valueMax = 255.0;
+  RefinementEngine engine(image.data(), grid, p);
+  engine.Approximate(300);
+  const Approximation a = engine.GetApproximation();
+
+  FileHeader h;
+  h.size = grid;
+  h.spacing = { 0.5, 1.0, 2.0 };
+  h.origin = { 1.0, -2.0, 3.0 };
+  h.direction = { 0, -1, 0, 1, 0, 0, 0, 0, 1 };
+  h.quantizationStep = 2.0;
+  h.numberOfPoints = uint32_t(a.points.size());
+  const std::string path =
+    (std::filesystem::temp_directory_path() / ("dcv-io-" + std::to_string(::getpid()) + ".dcv")).string();
+  WriteFileAtomically(path, SerializeFile(h, EncodePayload(a, 0.0, 2.0)));
+
+  using ImageType = itk::Image<uint8_t, 3>;
+  auto reader = itk::ImageFileReader<ImageType>::New();
+  reader->SetFileName(path);
+  ASSERT_NO_THROW(reader->Update());
+  EXPECT_STREQ(reader->GetImageIO()->GetNameOfClass(), "DCVImageIO");
+  const ImageType * out = reader->GetOutput();
+  EXPECT_EQ(out->GetLargestPossibleRegion().GetSize()[0], 30u);
+  EXPECT_EQ(out->GetLargestPossibleRegion().GetSize()[2], 22u);
+  EXPECT_EQ(out->GetSpacing()[2], 2.0);
+  EXPECT_EQ(out->GetOrigin()[1], -2.0);
+  EXPECT_EQ(out->GetDirection()(0, 1), -1.0);
+  EXPECT_EQ(out->GetDirection()(1, 0), 1.0);
+  std::vector<uint8_t> expected(grid.NumberOfVoxels());
+  Rasterize(a, expected.data());
+  EXPECT_TRUE(std::equal(expected.begin(), expected.end(), out->GetBufferPointer()));
+
+  // A damaged file gets an exception naming it.
+  auto bytes = ReadWholeFile(path);
+  bytes[bytes.size() / 2] ^= 1;
+  WriteFileAtomically(path, bytes);
+  auto again = itk::ImageFileReader<ImageType>::New();
+  again->SetFileName(path);
+  try
+  {
+    again->Update();
+    FAIL() << "a damaged .dcv file was read";
+  }
+  catch (const itk::ExceptionObject & e)
+  {
+    EXPECT_NE(std::string(e.GetDescription()).find("CRC-32"), std::string::npos) << e.GetDescription();
+    EXPECT_NE(std::string(e.GetDescription()).find(path), std::string::npos) << e.GetDescription();
+  }
+  std::filesystem::remove(path);
+}
+
+TEST(DCVImageIO, RecognisesOnlyDcvFiles)
+{
+  auto io = itk::DCVImageIO::New();
+  EXPECT_FALSE(io->CanReadFile("volume.nrrd"));
+  EXPECT_FALSE(io->CanReadFile("/nonexistent/volume.dcv"));
+  EXPECT_FALSE(io->CanWriteFile("volume.dcv"));
+}
+
+} // namespace
