@@ -102,6 +102,49 @@ Rasterize(const Approximation & a, T * out, unsigned int threads = 0)
   }
 }
 
+/** Rasterizes only the voxels of the box [first, last] (inclusive grid coordinates) into `out`, laid
+ * out as that box (x fastest); cells whose bounding box misses the box are skipped. The values are
+ * the very ones Rasterize() gives. Returns the number of cells rasterized. */
+template <typename T>
+std::size_t
+RasterizeBox(const Approximation & a, const GridPoint & first, const GridPoint & last, T * out)
+{
+  const int64_t sx = int64_t(last[0]) - first[0] + 1;
+  const int64_t sy = int64_t(last[1]) - first[1] + 1;
+  std::size_t   cells = 0;
+  for (const Tetrahedron & t : a.tetrahedra)
+  {
+    const std::array<GridPoint, 4> p{ a.points[t[0]], a.points[t[1]], a.points[t[2]], a.points[t[3]] };
+    bool                           misses = false;
+    for (int d = 0; d < 3 && !misses; ++d)
+    {
+      const int32_t lo = std::min(std::min(p[0][d], p[1][d]), std::min(p[2][d], p[3][d]));
+      const int32_t hi = std::max(std::max(p[0][d], p[1][d]), std::max(p[2][d], p[3][d]));
+      misses = hi < first[d] || lo > last[d];
+    }
+    if (misses)
+    {
+      continue;
+    }
+    ++cells;
+    const CanonicalTetrahedron c(p, { a.values[t[0]], a.values[t[1]], a.values[t[2]], a.values[t[3]] });
+    const LinearFunction       L(c);
+    ForEachSpan(a.grid, c.p, [&](int32_t y, int32_t z, int32_t x0, int32_t x1) {
+      if (y < first[1] || y > last[1] || z < first[2] || z > last[2])
+      {
+        return;
+      }
+      const double base = L.RowBase(y, z);
+      T *          row = out + (int64_t(z) - first[2]) * sx * sy + (int64_t(y) - first[1]) * sx - first[0];
+      for (int32_t x = std::max(x0, first[0]); x <= std::min(x1, last[0]); ++x)
+      {
+        row[x] = ConvertValue<T>(base + L.gx * double(x - L.origin[0]));
+      }
+    });
+  }
+  return cells;
+}
+
 /** Rebuilds the tetrahedra of an approximation from its points, then rasterizes it. */
 template <typename T>
 void

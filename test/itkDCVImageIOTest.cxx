@@ -103,3 +103,58 @@ TEST(DCVImageIO, RecognisesOnlyDcvFiles)
 }
 
 } // namespace
+
+#include "itkDCVImageSource.h"
+#include "itkImageRegionConstIteratorWithIndex.h"
+
+namespace
+{
+TEST(DCVImageSource, DecodesWholeVolumesAndOnlyTheRequestedRegion)
+{
+  using namespace dcv;
+  const GridSize           grid{ 36, 30, 28 };
+  const auto               voxels = SheppLoganPhantom(grid);
+  const std::vector<float> image(voxels.begin(), voxels.end());
+  RefinementParameters     p = ParametersForMode(Mode::Silva);
+  RefinementEngine         engine(image.data(), grid, p);
+  engine.Approximate(500);
+  const Approximation a = engine.GetApproximation();
+  FileHeader          h;
+  h.size = grid;
+  h.quantizationStep = 1.0;
+  h.numberOfPoints = uint32_t(a.points.size());
+  const std::string path =
+    (std::filesystem::temp_directory_path() / ("dcv-source-" + std::to_string(::getpid()) + ".dcv")).string();
+  WriteFileAtomically(path, SerializeFile(h, EncodePayload(a, 0.0, 1.0)));
+
+  using ImageType = itk::Image<uint8_t, 3>;
+  auto source = itk::DCVImageSource<ImageType>::New();
+  source->SetFileName(path);
+  source->Update();
+  std::vector<uint8_t> expected(grid.NumberOfVoxels());
+  Rasterize(a, expected.data());
+  EXPECT_TRUE(std::equal(expected.begin(), expected.end(), source->GetOutput()->GetBufferPointer()));
+  const auto allCells = source->GetNumberOfRasterizedCells();
+  EXPECT_EQ(allCells, a.tetrahedra.size());
+
+  // One slab, requested from a fresh source: the same voxels, far fewer cells.
+  ImageType::RegionType slab({ { 5, 7, 10 } }, { { 20, 15, 3 } });
+  auto                  part = itk::DCVImageSource<ImageType>::New();
+  part->SetFileName(path);
+  part->UpdateOutputInformation();
+  part->GetOutput()->SetRequestedRegion(slab);
+  part->Update();
+  EXPECT_EQ(part->GetOutput()->GetBufferedRegion(), slab);
+  EXPECT_LT(part->GetNumberOfRasterizedCells(), allCells / 2);
+  for (itk::ImageRegionConstIteratorWithIndex<ImageType> it(part->GetOutput(), slab); !it.IsAtEnd(); ++it)
+  {
+    const auto i = it.GetIndex();
+    ASSERT_EQ(it.Get(), expected[grid.Offset(int32_t(i[0]), int32_t(i[1]), int32_t(i[2]))]) << i;
+  }
+  std::filesystem::remove(path);
+
+  auto missing = itk::DCVImageSource<ImageType>::New();
+  missing->SetFileName(path);
+  EXPECT_THROW(missing->Update(), itk::ExceptionObject);
+}
+} // namespace
