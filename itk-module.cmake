@@ -11,6 +11,7 @@ itk_module(DelaunayCompression
     ITKMesh
     ITKIOImageBase
     ITKImageFeature
+    ITKIOMeshBase
   TEST_DEPENDS
     ITKTestKernel
     ITKGoogleTest
@@ -19,6 +20,7 @@ itk_module(DelaunayCompression
     ITKIOMeta
   FACTORY_NAMES
     ImageIO::DCV
+    MeshIO::DCV
   EXCLUDE_FROM_DEFAULT
   DESCRIPTION
     "${DOCUMENTATION}"

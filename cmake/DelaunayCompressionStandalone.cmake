@@ -14,8 +14,8 @@ option(DelaunayCompression_BUILD_BENCHMARKS "Build the benchmark programs" ON)
 
 # What the library needs (as itk-module.cmake's DEPENDS), and the IO modules with which the CLI
 # and the tests read NRRD, NIfTI, MetaImage and DICOM.
-set(DelaunayCompression_ITK_COMPONENTS ITKCommon ITKMesh ITKIOImageBase ITKImageFeature)
-set(DelaunayCompression_ITK_IO_COMPONENTS ITKIONRRD ITKIONIFTI ITKIOMeta ITKIOGDCM)
+set(DelaunayCompression_ITK_COMPONENTS ITKCommon ITKMesh ITKIOImageBase ITKIOMeshBase ITKImageFeature)
+set(DelaunayCompression_ITK_IO_COMPONENTS ITKIONRRD ITKIONIFTI ITKIOMeta ITKIOGDCM ITKIOMeshVTK)
 find_package(ITK 5.2 REQUIRED COMPONENTS ${DelaunayCompression_ITK_COMPONENTS} ${DelaunayCompression_ITK_IO_COMPONENTS}
   ITKTestKernel)
 include(${ITK_USE_FILE})

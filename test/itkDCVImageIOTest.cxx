@@ -158,3 +158,98 @@ TEST(DCVImageSource, DecodesWholeVolumesAndOnlyTheRequestedRegion)
   EXPECT_THROW(missing->Update(), itk::ExceptionObject);
 }
 } // namespace
+
+#include "itkDCVMeshIO.h"
+#include "itkDCVMeshIOFactory.h"
+#include "itkDelaunayApproximationImageToMeshFilter.h"
+#include "itkMesh.h"
+#include "itkMeshFileReader.h"
+#include "itkMeshFileWriter.h"
+#include "itkTetrahedralMeshToImageFilter.h"
+
+namespace
+{
+TEST(DCVMeshIO, MeshRoundTripThroughMeshFileWriterAndReader)
+{
+  itk::DCVMeshIOFactory::RegisterOneFactory();
+  using ImageType = itk::Image<uint8_t, 3>;
+  using MeshType = itk::Mesh<float, 3>;
+  const dcv::GridSize grid{ 26, 24, 20 };
+  auto                image = ImageType::New();
+  image->SetRegions(ImageType::SizeType{ { 26, 24, 20 } });
+  image->Allocate();
+  const auto voxels = dcv::SheppLoganPhantom(grid);
+  std::copy(voxels.begin(), voxels.end(), image->GetBufferPointer());
+  ImageType::SpacingType spacing;
+  spacing[0] = 0.7;
+  spacing[1] = 1.1;
+  spacing[2] = 2.0;
+  image->SetSpacing(spacing);
+
+  auto approximate = itk::DelaunayApproximationImageToMeshFilter<ImageType, MeshType>::New();
+  approximate->SetInput(image);
+  approximate->SetNumberOfPoints(250);
+  approximate->SetMode(dcv::Mode::Dec);
+  approximate->SetQuantizationStep(1.0);
+  approximate->Update();
+
+  const std::string path =
+    (std::filesystem::temp_directory_path() / ("dcv-mesh-" + std::to_string(::getpid()) + ".dcv")).string();
+  auto io = itk::DCVMeshIO::New();
+  io->SetReferenceImage(image);
+  io->SetQuantizationOrigin(approximate->GetQuantizationOrigin());
+  io->SetDecodedPixelType(dcv::PixelType::UInt8);
+  auto writer = itk::MeshFileWriter<MeshType>::New();
+  writer->SetMeshIO(io);
+  writer->SetInput(approximate->GetOutput());
+  writer->SetFileName(path);
+  ASSERT_NO_THROW(writer->Update());
+
+  auto reader = itk::MeshFileReader<MeshType>::New();
+  reader->SetFileName(path);
+  ASSERT_NO_THROW(reader->Update());
+  const MeshType * mesh = reader->GetOutput();
+  EXPECT_EQ(mesh->GetNumberOfPoints(), 250u);
+  EXPECT_EQ(mesh->GetNumberOfCells(), approximate->GetOutput()->GetNumberOfCells());
+  EXPECT_EQ(mesh->GetCells()->Begin()->Value()->GetType(), itk::CellGeometryEnum::TETRAHEDRON_CELL);
+
+  // Both meshes decode to the same volume.
+  auto rasterize = [&image](const MeshType * m) {
+    auto f = itk::TetrahedralMeshToImageFilter<MeshType, ImageType>::New();
+    f->SetInput(m);
+    f->SetReferenceImage(image);
+    f->Update();
+    return ImageType::Pointer(f->GetOutput());
+  };
+  const auto before = rasterize(approximate->GetOutput());
+  const auto after = rasterize(mesh);
+  EXPECT_TRUE(std::equal(before->GetBufferPointer(),
+                         before->GetBufferPointer() + grid.NumberOfVoxels(),
+                         after->GetBufferPointer()));
+
+  // A mesh off the grid, or no grid at all, is refused with a clear error and no file.
+  std::filesystem::remove(path);
+  auto moved = MeshType::New();
+  moved->Graft(approximate->GetOutput());
+  MeshType::PointType p = moved->GetPoint(9);
+  p[0] += 0.3;
+  moved->SetPoint(9, p);
+  writer->SetInput(moved);
+  try
+  {
+    writer->Update();
+    FAIL() << "a point off the grid was written";
+  }
+  catch (const itk::ExceptionObject & e)
+  {
+    EXPECT_NE(std::string(e.GetDescription()).find("is not on a voxel"), std::string::npos) << e.GetDescription();
+  }
+  EXPECT_FALSE(std::filesystem::exists(path));
+  auto bare = itk::MeshFileWriter<MeshType>::New();
+  bare->SetMeshIO(itk::DCVMeshIO::New());
+  bare->SetInput(approximate->GetOutput());
+  bare->SetFileName(path);
+  EXPECT_THROW(bare->Update(), itk::ExceptionObject);
+  EXPECT_FALSE(std::filesystem::exists(path));
+}
+} // namespace
