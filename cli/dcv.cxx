@@ -444,34 +444,9 @@ RunDecompress(const std::string & input, const std::string & output, bool force,
   dcv::ParseFile(bytes, Quoted(input), header, payload);
   CheckOutput(output, force);
   const auto start = std::chrono::steady_clock::now();
-  using dcv::PixelType;
-  switch (header.pixelType)
-  {
-    case PixelType::UInt8:
-      WriteImage(DecodeImage<uint8_t>(header, payload, Quoted(input)).GetPointer(), output);
-      break;
-    case PixelType::Int8:
-      WriteImage(DecodeImage<int8_t>(header, payload, Quoted(input)).GetPointer(), output);
-      break;
-    case PixelType::UInt16:
-      WriteImage(DecodeImage<uint16_t>(header, payload, Quoted(input)).GetPointer(), output);
-      break;
-    case PixelType::Int16:
-      WriteImage(DecodeImage<int16_t>(header, payload, Quoted(input)).GetPointer(), output);
-      break;
-    case PixelType::UInt32:
-      WriteImage(DecodeImage<uint32_t>(header, payload, Quoted(input)).GetPointer(), output);
-      break;
-    case PixelType::Int32:
-      WriteImage(DecodeImage<int32_t>(header, payload, Quoted(input)).GetPointer(), output);
-      break;
-    case PixelType::Float32:
-      WriteImage(DecodeImage<float>(header, payload, Quoted(input)).GetPointer(), output);
-      break;
-    case PixelType::Float64:
-      WriteImage(DecodeImage<double>(header, payload, Quoted(input)).GetPointer(), output);
-      break;
-  }
+  dcv::VisitPixelType(header.pixelType, [&](auto pixel) {
+    WriteImage(DecodeImage<decltype(pixel)>(header, payload, Quoted(input)).GetPointer(), output);
+  });
   if (!quiet)
   {
     std::cout << "seconds: " << std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count()

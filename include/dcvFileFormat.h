@@ -58,6 +58,32 @@ enum class PixelType : uint8_t
 DelaunayCompression_EXPORT const char *
 PixelTypeName(PixelType type);
 
+/** Calls f(T()) with the C++ type T of a pixel type: one switch for every decoder. */
+template <typename TFunction>
+void
+VisitPixelType(PixelType type, TFunction && f)
+{
+  switch (type)
+  {
+    case PixelType::UInt8:
+      return f(uint8_t());
+    case PixelType::Int8:
+      return f(int8_t());
+    case PixelType::UInt16:
+      return f(uint16_t());
+    case PixelType::Int16:
+      return f(int16_t());
+    case PixelType::UInt32:
+      return f(uint32_t());
+    case PixelType::Int32:
+      return f(int32_t());
+    case PixelType::Float32:
+      return f(float());
+    case PixelType::Float64:
+      return f(double());
+  }
+}
+
 /** Everything of a .dcv file but its coded payload. */
 struct FileHeader
 {

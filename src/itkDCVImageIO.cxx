@@ -87,34 +87,9 @@ DCVImageIO::ReadImageInformation()
     }
     this->SetDirection(i, axis);
   }
-  using C = IOComponentEnum;
-  switch (h.pixelType)
-  {
-    case dcv::PixelType::UInt8:
-      this->SetComponentType(C::UCHAR);
-      break;
-    case dcv::PixelType::Int8:
-      this->SetComponentType(C::CHAR);
-      break;
-    case dcv::PixelType::UInt16:
-      this->SetComponentType(C::USHORT);
-      break;
-    case dcv::PixelType::Int16:
-      this->SetComponentType(C::SHORT);
-      break;
-    case dcv::PixelType::UInt32:
-      this->SetComponentType(C::UINT);
-      break;
-    case dcv::PixelType::Int32:
-      this->SetComponentType(C::INT);
-      break;
-    case dcv::PixelType::Float32:
-      this->SetComponentType(C::FLOAT);
-      break;
-    case dcv::PixelType::Float64:
-      this->SetComponentType(C::DOUBLE);
-      break;
-  }
+  dcv::VisitPixelType(h.pixelType, [this](auto pixel) {
+    this->SetComponentType(MapPixelType<decltype(pixel)>::CType);
+  });
 }
 
 void
@@ -132,33 +107,7 @@ DCVImageIO::Read(void * buffer)
   {
     itkExceptionMacro(<< e.what());
   }
-  switch (h.pixelType)
-  {
-    case dcv::PixelType::UInt8:
-      dcv::Rasterize(a, static_cast<uint8_t *>(buffer));
-      break;
-    case dcv::PixelType::Int8:
-      dcv::Rasterize(a, static_cast<int8_t *>(buffer));
-      break;
-    case dcv::PixelType::UInt16:
-      dcv::Rasterize(a, static_cast<uint16_t *>(buffer));
-      break;
-    case dcv::PixelType::Int16:
-      dcv::Rasterize(a, static_cast<int16_t *>(buffer));
-      break;
-    case dcv::PixelType::UInt32:
-      dcv::Rasterize(a, static_cast<uint32_t *>(buffer));
-      break;
-    case dcv::PixelType::Int32:
-      dcv::Rasterize(a, static_cast<int32_t *>(buffer));
-      break;
-    case dcv::PixelType::Float32:
-      dcv::Rasterize(a, static_cast<float *>(buffer));
-      break;
-    case dcv::PixelType::Float64:
-      dcv::Rasterize(a, static_cast<double *>(buffer));
-      break;
-  }
+  dcv::VisitPixelType(h.pixelType, [&](auto pixel) { dcv::Rasterize(a, static_cast<decltype(pixel) *>(buffer)); });
 }
 
 void
