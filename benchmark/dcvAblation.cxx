@@ -15,17 +15,22 @@
  *  limitations under the License.
  *
  *=========================================================================*/
-// dcvAblation: the paper's Table 1 at equal point counts. Rows: volumes; columns: the modes silva, dec,
-// dec+com and best, each as PSNR in dB and seconds (the whole filter, bilateral smoothing included).
+// dcvAblation: the paper's Table 1. Rows: volumes; columns: the modes silva, dec, dec+com and best,
+// each as PSNR in dB and seconds (the whole filter, bilateral smoothing included).
 //
-// Usage: dcvAblation [--voxels-per-point V] VOLUME...   (points = voxels / V, default V = 600: about
-// what 0.03125 bits per voxel affords)
+// Usage: dcvAblation [--voxels-per-point V | --bpv R] VOLUME...
+//   --voxels-per-point V: equal point counts, points = voxels / V (default V = 600: about what 0.03125
+//                         bits per voxel affords); PSNR of the unrounded spline
+//   --bpv R:              equal file sizes, as dcv compress --bpv R (default quantization step, rate
+//                         control); PSNR of the decoded image, what dcv decompress writes
 #include "dcvApproximation.h"
+#include "dcvCodec.h"
 #include "dcvVolumeHeader.h"
 #include "itkDelaunayApproximationImageToMeshFilter.h"
 
 #include "itkImageFileReader.h"
 #include "itkMesh.h"
+#include "itkTetrahedralMeshToImageFilter.h"
 
 #include <chrono>
 #include <cstdio>
@@ -41,25 +46,19 @@ constexpr dcv::Mode modes[] = { dcv::Mode::Silva, dcv::Mode::Dec, dcv::Mode::Dec
 
 template <typename TPixel>
 void
-Row(const std::string & path, double voxelsPerPoint)
+Row(const std::string & path, double voxelsPerPoint, double bpv)
 {
   using ImageType = itk::Image<TPixel, 3>;
   auto       image = itk::ReadImage<ImageType>(path);
   const auto n = image->GetLargestPossibleRegion().GetNumberOfPixels();
-  const auto points = std::max<std::size_t>(8, std::size_t(double(n) / voxelsPerPoint));
-  double     peak = 255.0;
-  if (!(sizeof(TPixel) == 1 && std::is_integral<TPixel>::value))
-  {
-    const auto range = std::minmax_element(image->GetBufferPointer(), image->GetBufferPointer() + n);
-    peak = double(*range.second) - double(*range.first);
-  }
-  const auto size = image->GetLargestPossibleRegion().GetSize();
-  std::printf("| %s | %lux%lux%lu | %zu |",
-              std::filesystem::path(path).filename().c_str(),
-              size[0],
-              size[1],
-              size[2],
-              points);
+  const auto   points = std::max<std::size_t>(8, std::size_t(double(n) / voxelsPerPoint));
+  const double peak = dcv::PSNRPeak(image->GetBufferPointer(), n);
+  const auto   size = image->GetLargestPossibleRegion().GetSize();
+  std::printf("| %s | %lux%lux%lu |", std::filesystem::path(path).filename().c_str(), size[0], size[1], size[2]);
+  if (bpv > 0.0)
+    std::printf(" %.0f |", std::floor(bpv * double(n) / 8.0));
+  else
+    std::printf(" %zu |", points);
   std::string split;
   for (dcv::Mode mode : modes)
   {
@@ -67,10 +66,27 @@ Row(const std::string & path, double voxelsPerPoint)
     filter->SetInput(image);
     filter->SetNumberOfPoints(points);
     filter->SetMode(mode);
+    if (bpv > 0.0)
+    {
+      filter->SetQuantizationStep(dcv::DefaultQuantizationStep(peak, std::is_integral<TPixel>::value));
+      filter->SetBitsPerVoxel(bpv);
+    }
     const auto start = std::chrono::steady_clock::now();
     filter->Update();
     const double seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
-    std::printf(" %.2f (%.1f s) |", dcv::PSNR(filter->GetSquaredError(), n, peak), seconds);
+    if (bpv > 0.0)
+    {
+      auto rasterize = itk::TetrahedralMeshToImageFilter<MeshType, ImageType>::New();
+      rasterize->SetInput(filter->GetOutput());
+      rasterize->SetReferenceImage(image);
+      rasterize->Update();
+      const double error = dcv::SquaredError(image->GetBufferPointer(), rasterize->GetOutput()->GetBufferPointer(), n);
+      std::printf(" %.2f (%lu points, %.1f s) |", dcv::PSNR(error, n, peak), filter->GetOutput()->GetNumberOfPoints(), seconds);
+    }
+    else
+    {
+      std::printf(" %.2f (%.1f s) |", dcv::PSNR(filter->GetSquaredError(), n, peak), seconds);
+    }
     std::fflush(stdout);
     if (mode == dcv::Mode::Best)
     {
@@ -98,6 +114,7 @@ main(int argc, char * argv[])
 {
   std::vector<std::string> volumes;
   double                   voxelsPerPoint = 600.0;
+  double                   bpv = 0.0;
   for (int i = 1; i < argc; ++i)
   {
     const std::string a = argv[i];
@@ -105,17 +122,22 @@ main(int argc, char * argv[])
     {
       voxelsPerPoint = std::stod(argv[++i]);
     }
+    else if (a == "--bpv" && i + 1 < argc)
+    {
+      bpv = std::stod(argv[++i]);
+    }
     else
     {
       volumes.push_back(a);
     }
   }
-  if (volumes.empty() || !(voxelsPerPoint >= 1.0))
+  if (volumes.empty() || !(voxelsPerPoint >= 1.0) || !(bpv >= 0.0))
   {
-    std::cerr << "usage: dcvAblation [--voxels-per-point V] VOLUME..." << std::endl;
+    std::cerr << "usage: dcvAblation [--voxels-per-point V | --bpv R] VOLUME..." << std::endl;
     return 1;
   }
-  std::printf("| volume | size | points | silva dB (s) | dec | dec+com | best |\n|---|---|---:|---:|---:|---:|---:|\n");
+  std::printf("| volume | size | %s | silva dB (s) | dec | dec+com | best |\n|---|---|---:|---:|---:|---:|---:|\n",
+              bpv > 0.0 ? "bytes" : "points");
   for (const auto & path : volumes)
   {
     try
@@ -124,16 +146,16 @@ main(int argc, char * argv[])
       switch (io->GetComponentType())
       {
         case itk::IOComponentEnum::UCHAR:
-          Row<uint8_t>(path, voxelsPerPoint);
+          Row<uint8_t>(path, voxelsPerPoint, bpv);
           break;
         case itk::IOComponentEnum::SHORT:
-          Row<int16_t>(path, voxelsPerPoint);
+          Row<int16_t>(path, voxelsPerPoint, bpv);
           break;
         case itk::IOComponentEnum::USHORT:
-          Row<uint16_t>(path, voxelsPerPoint);
+          Row<uint16_t>(path, voxelsPerPoint, bpv);
           break;
         default:
-          Row<float>(path, voxelsPerPoint);
+          Row<float>(path, voxelsPerPoint, bpv);
       }
     }
     catch (const std::exception & e)

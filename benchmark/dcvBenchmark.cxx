@@ -154,12 +154,8 @@ Benchmark(const std::string & path, const Volume & volume, const std::vector<std
   const dcv::GridSize & grid = volume.grid;
   const uint64_t        voxels = grid.NumberOfVoxels();
   const float *         original = volume.image->GetBufferPointer();
-  double                peak = 255.0;
-  if (!volume.eightBit)
-  {
-    const auto range = std::minmax_element(original, original + voxels);
-    peak = std::max(1e-12, double(*range.second) - double(*range.first));
-  }
+  const auto            range = std::minmax_element(original, original + voxels);
+  const double          peak = dcv::PSNRPeak(*range.first, *range.second, volume.eightBit);
   const std::string name = fs::path(path).filename().string();
   const std::string size = std::to_string(grid.x) + "x" + std::to_string(grid.y) + "x" + std::to_string(grid.z);
 

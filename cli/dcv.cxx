@@ -169,18 +169,6 @@ Observe(itk::ProcessObject * process, const std::string & label, bool quiet)
 }
 
 /** Peak of the PSNR: 255 for 8-bit data, else the range of the original volume. */
-template <typename TPixel>
-double
-Peak(const TPixel * data, std::size_t n)
-{
-  if (sizeof(TPixel) == 1 && std::is_integral<TPixel>::value)
-  {
-    return 255.0;
-  }
-  const auto range = std::minmax_element(data, data + n);
-  return std::max(1e-12, double(*range.second) - double(*range.first));
-}
-
 struct ApproximateOptions
 {
   std::string input;
@@ -249,7 +237,7 @@ Approximate(const ApproximateOptions & o)
   const auto        n = image->GetBufferedRegion().GetNumberOfPixels();
 
   const double      error = dcv::SquaredError(image->GetBufferPointer(), result->GetBufferPointer(), n);
-  const double      psnr = dcv::PSNR(error, n, Peak(image->GetBufferPointer(), n));
+  const double      psnr = dcv::PSNR(error, n, dcv::PSNRPeak(image->GetBufferPointer(), n));
   WriteImage(result, o.output);
   if (!o.quiet)
   {
@@ -324,13 +312,8 @@ Compress(const ApproximateOptions & o)
   const auto   start = std::chrono::steady_clock::now();
   const auto   region = image->GetBufferedRegion();
   const auto   n = region.GetNumberOfPixels();
-  const double peak = Peak(image->GetBufferPointer(), n);
-  // Automatic step: 1/64 of the peak (4 for 8-bit data), rounded to a whole number for integer data.
-  double step = o.step > 0.0 ? o.step : peak / 64.0;
-  if (std::is_integral<TPixel>::value)
-  {
-    step = std::max(1.0, std::round(step));
-  }
+  const double peak = dcv::PSNRPeak(image->GetBufferPointer(), n);
+  const double step = o.step > 0.0 ? o.step : dcv::DefaultQuantizationStep(peak, std::is_integral<TPixel>::value);
 
   dcv::FileHeader header;
   header.pixelType = PixelTypeOf<TPixel>();
@@ -350,69 +333,33 @@ Compress(const ApproximateOptions & o)
 
   auto approximate = MakeApproximationFilter<ImageType>(image, o);
   approximate->SetQuantizationStep(step);
-  // Encodes with a point count; the mesh's points lie on voxels of the image.
-  auto encode = [&](std::size_t points) {
-    approximate->SetNumberOfPoints(std::max<std::size_t>(8, points));
+  // Rate control (--bpv) is the filter's: the method runs once, then adjusts its point count.
+  approximate->SetBitsPerVoxel(o.bpv);
+  try
+  {
     approximate->Update();
-    const MeshType *   mesh = approximate->GetOutput();
-    dcv::Approximation a;
-    a.grid = header.size;
-    for (itk::IdentifierType i = 0; i < mesh->GetNumberOfPoints(); ++i)
-    {
-      const auto c = image->template TransformPhysicalPointToContinuousIndex<double>(mesh->GetPoint(i));
-      a.points.push_back({ int32_t(std::lround(c[0] - double(region.GetIndex()[0]))),
-                           int32_t(std::lround(c[1] - double(region.GetIndex()[1]))),
-                           int32_t(std::lround(c[2] - double(region.GetIndex()[2]))) });
-      a.values.push_back(mesh->GetPointData()->ElementAt(i));
-    }
-    header.quantizationOrigin = approximate->GetQuantizationOrigin();
-    header.numberOfPoints = uint32_t(a.points.size());
-    return dcv::SerializeFile(header, dcv::EncodePayload(a, header.quantizationOrigin, step));
-  };
-  std::vector<uint8_t> bytes;
-  if (o.bpv > 0.0)
-  {
-    // Rate control: the size is nearly linear in the point count, so each run predicts the count
-    // that fills the budget from the bits per point it measured; 97% to 100% of the budget is
-    // usually reached at the second or third run.
-    const double budget = std::floor(o.bpv * double(n) / 8.0);
-    const double overhead = 100.0;
-    std::size_t  points = std::size_t(std::max(8.0, (budget - overhead) * 8.0 / 24.0));
-    std::vector<uint8_t> best;
-    for (int run = 0; run < 6; ++run)
-    {
-      bytes = encode(points);
-      const double size = double(bytes.size());
-      if (size <= budget && size > double(best.size()))
-      {
-        best = bytes;
-      }
-      if (size <= budget && size >= 0.97 * budget)
-      {
-        break;
-      }
-      const double bitsPerPoint = std::max(1.0, (size - overhead) * 8.0 / double(points));
-      const double target = size > budget ? 0.985 : 0.99;
-      const std::size_t next = std::size_t(std::max(8.0, (budget * target - overhead) * 8.0 / bitsPerPoint));
-      if (next == points)
-      {
-        points = size > budget ? points - std::max<std::size_t>(1, points / 100) : points + std::max<std::size_t>(1, points / 100);
-      }
-      else
-      {
-        points = next;
-      }
-    }
-    if (best.empty())
-    {
-      throw Failure("cannot fit " + Quoted(o.input) + " into " + std::to_string(std::size_t(budget)) +
-                    " bytes (--bpv " + std::to_string(o.bpv) + "); even the 8 corners need more");
-    }
-    bytes = best;
   }
-  else
+  catch (const itk::ExceptionObject & e)
   {
-    bytes = encode(o.points);
+    throw Failure("cannot compress " + Quoted(o.input) + ": " + e.GetDescription());
+  }
+  const MeshType *   mesh = approximate->GetOutput();
+  dcv::Approximation a;
+  a.grid = header.size;
+  for (itk::IdentifierType i = 0; i < mesh->GetNumberOfPoints(); ++i)
+  {
+    const auto c = image->template TransformPhysicalPointToContinuousIndex<double>(mesh->GetPoint(i));
+    a.points.push_back({ int32_t(std::lround(c[0] - double(region.GetIndex()[0]))),
+                         int32_t(std::lround(c[1] - double(region.GetIndex()[1]))),
+                         int32_t(std::lround(c[2] - double(region.GetIndex()[2]))) });
+    a.values.push_back(mesh->GetPointData()->ElementAt(i));
+  }
+  header.quantizationOrigin = approximate->GetQuantizationOrigin();
+  header.numberOfPoints = uint32_t(a.points.size());
+  const std::vector<uint8_t> bytes = dcv::SerializeFile(header, dcv::EncodePayload(a, header.quantizationOrigin, step));
+  if (o.bpv > 0.0 && double(bytes.size()) > std::floor(o.bpv * double(n) / 8.0))
+  {
+    throw Failure("internal error: " + std::to_string(bytes.size()) + " bytes exceed the --bpv budget");
   }
   dcv::WriteFileAtomically(o.output, bytes);
   const double seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();

@@ -26,6 +26,7 @@
 #include <atomic>
 #include <cstdint>
 #include <thread>
+#include <type_traits>
 #include <vector>
 
 /** \file dcvApproximation.h
@@ -158,6 +159,22 @@ Decode(Approximation & a, T * out)
 /** Peak signal-to-noise ratio in dB: 10 log10(peak^2 / (squaredError / voxels)); +inf when exact. */
 DelaunayCompression_EXPORT double
 PSNR(double squaredError, uint64_t voxels, double peak);
+
+/** The PSNR peak used throughout: 255 for 8-bit data, else the range max - min of the original. */
+inline double
+PSNRPeak(double minimum, double maximum, bool eightBit)
+{
+  return eightBit ? 255.0 : std::max(1e-12, maximum - minimum);
+}
+
+/** PSNRPeak of a buffer of n values of type T (8-bit when T is a one-byte integer). */
+template <typename T>
+double
+PSNRPeak(const T * data, uint64_t n)
+{
+  const auto range = std::minmax_element(data, data + n);
+  return PSNRPeak(double(*range.first), double(*range.second), sizeof(T) == 1 && std::is_integral<T>::value);
+}
 
 /** Sum of squared differences between two buffers of n values. */
 template <typename A, typename B>

@@ -20,7 +20,10 @@
 
 #include "DelaunayCompressionExport.h"
 #include "dcvApproximation.h"
+#include "dcvRefinementEngine.h"
 
+#include <algorithm>
+#include <cmath>
 #include <cstdint>
 #include <string>
 #include <vector>
@@ -48,6 +51,40 @@ DelaunayCompression_EXPORT Approximation
                                          double                       q0,
                                          double                       q,
                                          const std::string &          name);
+
+/** The quantization step dcv compress uses by default: 1/64 of the PSNR peak (4 for 8-bit data),
+ * a whole number for integer data. */
+inline double
+DefaultQuantizationStep(double peak, bool integer)
+{
+  return integer ? std::max(1.0, std::round(peak / 64.0)) : peak / 64.0;
+}
+
+/** What ApproximateToBudget() did. */
+struct BudgetResult
+{
+  std::vector<uint8_t> payload;     // EncodePayload() of the engine's final approximation
+  std::size_t          firstCount;  // the point count the method ran with
+  unsigned             adjustments; // Resize() steps after it
+};
+
+/** Rate control: approximates with the largest payload that fits `payloadBytes` (at least 97% of it
+ * unless the approximation becomes exact first), running the method once.
+ *
+ * The coded size is nearly proportional to the point count, at a number of bits per point that
+ * grows slowly as points get sparser. So the method runs once, with a count predicted by
+ * log2(voxels / n) + 4 bits per point (positions and values), and then each measured size predicts
+ * the count that fills 98.5% of the budget; the engine reaches it by Resize() (decimation or more
+ * refinement on the same tetrahedralization, least squares again), which costs a fraction of a run.
+ * The engine ends holding exactly the returned payload's approximation. Values are quantized as
+ * q0 + k q (the engine's parameters must say the same). Throws std::length_error when even the
+ * 8 corners do not fit. */
+DelaunayCompression_EXPORT BudgetResult
+ApproximateToBudget(RefinementEngine &                         engine,
+                    std::size_t                                payloadBytes,
+                    double                                     q0,
+                    double                                     q,
+                    const RefinementEngine::ProgressFunction & progress = RefinementEngine::ProgressFunction());
 
 } // namespace dcv
 

@@ -146,6 +146,12 @@ public:
   void
   Decimate(std::size_t count);
 
+  /** Brings the point count to `numberOfPoints` on the current tetrahedralization: Decimate() when
+   * there are more, Refine() when fewer, then least-squares values again when they are on. Rate
+   * control uses it to adjust a finished approximation instead of running the method again. */
+  void
+  Resize(std::size_t numberOfPoints);
+
   /** Replaces the vertex values by those minimizing the total squared error against the image on the
    * current tetrahedralization (clamped to the value range); keeps the old ones if that is not better.
    * Returns the squared error gained (>= 0). */

@@ -50,6 +50,9 @@ namespace itk
  * - Alpha (default 0.9, > 0): positions are chosen on I* until PSNR(L) >= Alpha * PSNR(I*), then on I.
  * - QuantizationStep (default 0: none): vertex values are then min(I) + k * QuantizationStep, and the
  *   refinement works with these values (what a .dcv file stores). GetQuantizationOrigin() gives min(I).
+ * - BitsPerVoxel (default 0: off): when positive (QuantizationStep must be too), the point count is
+ *   chosen instead of NumberOfPoints so that the .dcv file of the output (without metadata) has at most
+ *   floor(BitsPerVoxel * voxels / 8) bytes and at least 97% of that (dcv::ApproximateToBudget).
  *
  * Results after Update(): GetSquaredError() (sum over voxels of the squared difference between the
  * input and the unrounded spline) and GetMeanSquaredError().
@@ -109,6 +112,10 @@ public:
   itkGetConstMacro(QuantizationStep, double);
   itkGetConstMacro(QuantizationOrigin, double);
 
+  /** Size of the output's .dcv file in bits per voxel (default 0: off, NumberOfPoints decides). */
+  itkSetMacro(BitsPerVoxel, double);
+  itkGetConstMacro(BitsPerVoxel, double);
+
   /** Sum of squared errors of the approximation, after Update(). */
   itkGetConstMacro(SquaredError, double);
   /** Mean squared error of the approximation, after Update(). */
@@ -156,6 +163,7 @@ private:
   double        m_Alpha{ 0.9 };
   double        m_QuantizationStep{ 0.0 };
   double        m_QuantizationOrigin{ 0.0 };
+  double        m_BitsPerVoxel{ 0.0 };
   double        m_SquaredError{ 0.0 };
   double        m_MeanSquaredError{ 0.0 };
   double        m_SmoothedPSNR{ 0.0 };

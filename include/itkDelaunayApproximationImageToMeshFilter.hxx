@@ -20,12 +20,15 @@
 
 #include "itkDelaunayApproximationImageToMeshFilter.h"
 
+#include "dcvCodec.h"
+#include "dcvFileFormat.h"
 #include "itkBilateralImageFilter.h"
 #include "itkImageRegionConstIterator.h"
 #include "itkProcessObject.h"
 
 #include <algorithm>
 #include <chrono>
+#include <cmath>
 #include <stdexcept>
 
 namespace itk
@@ -94,17 +97,17 @@ DelaunayApproximationImageToMeshFilter<TInputImage, TOutputMesh>::GenerateData()
   parameters.valueMin = double(NumericTraits<InputPixelType>::NonpositiveMin());
   parameters.valueMax = double(NumericTraits<InputPixelType>::max());
   const auto range = std::minmax_element(values.begin(), values.end());
-  if (sizeof(InputPixelType) == 1 && NumericTraits<InputPixelType>::is_integer)
-  {
-    parameters.peak = 255.0;
-  }
-  else
-  {
-    parameters.peak = std::max(1e-12, double(*range.second) - double(*range.first));
-  }
+  parameters.peak = dcv::PSNRPeak(*range.first,
+                                  *range.second,
+                                  sizeof(InputPixelType) == 1 && NumericTraits<InputPixelType>::is_integer);
   if (!(m_QuantizationStep >= 0.0))
   {
     itkExceptionMacro("QuantizationStep must be positive or 0 (none), got " << m_QuantizationStep << ".");
+  }
+  if (!(m_BitsPerVoxel >= 0.0) || (m_BitsPerVoxel > 0.0 && !(m_QuantizationStep > 0.0)))
+  {
+    itkExceptionMacro("BitsPerVoxel must be positive or 0 (off), and needs a positive QuantizationStep; got "
+                      << m_BitsPerVoxel << " and " << m_QuantizationStep << ".");
   }
   m_QuantizationOrigin = double(*range.first);
   parameters.quantizationStep = m_QuantizationStep;
@@ -145,7 +148,7 @@ DelaunayApproximationImageToMeshFilter<TInputImage, TOutputMesh>::GenerateData()
   try
   {
     dcv::RefinementEngine engine(values.data(), grid, parameters);
-    engine.Approximate(m_NumberOfPoints, [this, engineStart](double fraction) {
+    const auto            progress = [this, engineStart](double fraction) {
       this->UpdateProgress(engineStart + (1.0f - engineStart) * float(fraction));
       if (this->GetAbortGenerateData())
       {
@@ -153,7 +156,36 @@ DelaunayApproximationImageToMeshFilter<TInputImage, TOutputMesh>::GenerateData()
         e.SetDescription("DelaunayApproximationImageToMeshFilter: aborted");
         throw e;
       }
-    });
+    };
+    if (m_BitsPerVoxel > 0.0)
+    {
+      // The file is the payload plus a header that depends on the geometry only.
+      dcv::FileHeader header;
+      header.size = grid;
+      for (unsigned int i = 0; i < 3; ++i)
+        for (unsigned int j = 0; j < 3; ++j)
+          header.direction[3 * i + j] = input->GetDirection()(i, j);
+      const double fileBytes = std::floor(m_BitsPerVoxel * double(grid.NumberOfVoxels()) / 8.0);
+      const double headerBytes = double(dcv::SerializeFile(header, {}).size());
+      try
+      {
+        dcv::ApproximateToBudget(engine,
+                                 std::size_t(std::max(0.0, fileBytes - headerBytes)),
+                                 m_QuantizationOrigin,
+                                 m_QuantizationStep,
+                                 progress);
+      }
+      catch (const std::length_error & e)
+      {
+        itkExceptionMacro("BitsPerVoxel " << m_BitsPerVoxel << " allows a .dcv file of " << fileBytes
+                                          << " bytes, " << headerBytes << " of them header: too few (" << e.what()
+                                          << ").");
+      }
+    }
+    else
+    {
+      engine.Approximate(m_NumberOfPoints, progress);
+    }
     m_SquaredError = engine.GetSquaredError();
     m_MeanSquaredError = m_SquaredError / double(grid.NumberOfVoxels());
     m_SmoothedPSNR = engine.GetSmoothedPSNR();
@@ -220,6 +252,7 @@ DelaunayApproximationImageToMeshFilter<TInputImage, TOutputMesh>::PrintSelf(std:
   os << indent << "Alpha: " << m_Alpha << std::endl;
   os << indent << "QuantizationStep: " << m_QuantizationStep << std::endl;
   os << indent << "QuantizationOrigin: " << m_QuantizationOrigin << std::endl;
+  os << indent << "BitsPerVoxel: " << m_BitsPerVoxel << std::endl;
   os << indent << "SquaredError: " << m_SquaredError << std::endl;
   os << indent << "MeanSquaredError: " << m_MeanSquaredError << std::endl;
   os << indent << "SmoothedPSNR: " << m_SmoothedPSNR << std::endl;

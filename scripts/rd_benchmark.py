@@ -2,21 +2,29 @@
 """Rate-distortion comparison of dcv against public codecs on the same volume and byte budget.
 
 For every volume and every budget bpv, the budget in bytes is B = floor(bpv * voxels / 8) and each codec
-is tuned to the best PSNR (peak 255, MSE over all voxels) among the settings whose WHOLE output file has
-at most B bytes:
+is tuned to the best PSNR (MSE over all voxels, against the original values) among the settings whose WHOLE
+output file has at most B bytes:
 
   dcv         build/cli/dcv compress --bpv R (R = bpv; lowered only if the file exceeds B), decompress, PSNR
   j2k-comp    OpenJPEG, the z slices as the components of one 2D image (raw input, -mct 0); -r searched
   j2k-mosaic  OpenJPEG, the z slices tiled into one near-square 2D PGM mosaic; -r searched
   x265        HEVC, the z slices as frames of a 4:0:0 video (--preset slower --tune psnr); --crf searched
-  av1         aomenc --monochrome --end-usage=q --cpu-used=4; --cq-level searched
+  av1         aomenc --monochrome --end-usage=q --cpu-used=4; --cq-level searched (and 2-pass VBR)
 
-Peers only run on 8-bit volumes (headsq-ct.nrrd is int16: dcv only, PSNR peak = max - min as the project
-README says). Results: a Markdown table on stdout and in build/rd/rd.md, a CSV in build/rd/rd.csv and one
-PNG plot per volume (PSNR vs bpv) in build/rd/.
+PSNR peak: 255 for uint8 volumes, max - min of the original for other types (the project README's
+convention). The peers code unsigned integers: uint8 volumes as they are; other integer volumes (e.g. the
+int16 headsq-ct.nrrd) minus their minimum (added back after decoding), at the bit depth their range needs:
+OpenJPEG up to 16 bits (raw -F X,Y,Z,bits,u / 16-bit PGM), x265 and aomenc at 8, 10 or 12 bits (a range
+needing more than 12 bits is right-shifted, noted). Float volumes get dcv only.
 
-Example:
+Results: a Markdown table on stdout and in build/rd/rd.md, a CSV in build/rd/rd.csv and one PNG plot per
+volume (PSNR vs bpv) in build/rd/. --merge adds the rows of earlier runs' rd.csv files (this run's rows win
+for the same volume, bpv and codec), e.g. run the peers once and re-run dcv alone later.
+
+Examples:
   scripts/rd_benchmark.py --volumes head-mr.nrrd flair-mr.nrrd --bpv 0.03125
+  scripts/rd_benchmark.py --codecs j2k-comp j2k-mosaic x265 av1 --out build/rd-peers
+  scripts/rd_benchmark.py --codecs dcv --merge build/rd-peers/rd.csv
 """
 
 import argparse
@@ -104,14 +112,67 @@ def psnr(ref, test, peak):
     return float("inf") if mse == 0 else 10.0 * math.log10(peak * peak / mse)
 
 
+# ------------------------------------------------------------------------- the peers' unsigned integer samples
+
+OPJ_DEPTHS = list(range(8, 17))  # opj_compress raw / PGM input holds at most 16 bits a sample
+VIDEO_DEPTHS = [8, 10, 12]  # x265 (Debian's is built 8bit+10bit+12bit) and aomenc (high bit depth build)
+
+
+def peer_samples(vol):
+    """The unsigned samples the peers code: uint8 volumes as they are; other integer volumes minus their
+    minimum (the peers take unsigned input; added back by restore()), with the bit depth the range max - min
+    needs (at least 8). None for float volumes (the peers are skipped)."""
+    if vol.dtype == np.uint8:
+        return dict(codes=vol, offset=0, bits=8)
+    if not np.issubdtype(vol.dtype, np.integer):
+        return None
+    lo = int(vol.min())
+    bits = max(8, (int(vol.max()) - lo).bit_length())
+    return dict(codes=vol.astype(np.int64) - lo, offset=lo, bits=bits)
+
+
+def codec_depth(bits, depths):
+    """(coded bit depth, right shift): the smallest depth in `depths` that holds `bits`, else the largest
+    one with the samples right-shifted by the excess."""
+    for d in sorted(depths):
+        if d >= bits:
+            return d, 0
+    return max(depths), bits - max(depths)
+
+
+def coded(s, depth, shift):
+    """The samples as the codec gets them: uint8 at 8 bits, else uint16 (little-endian in files)."""
+    return (s["codes"] >> shift).astype(np.uint8 if depth == 8 else "<u2")
+
+
+def restore(s, rec, shift):
+    """Decoded samples -> values in the original range: undo the right shift (to the middle of the dropped
+    interval, clipped to the range's bit depth) and add the minimum back."""
+    r = rec.astype(np.int64)
+    if shift:
+        r = np.minimum((r << shift) + (1 << (shift - 1)), (1 << s["bits"]) - 1)
+    return r + s["offset"]
+
+
+def depth_note(depth, shift):
+    return "" if depth == 8 and not shift else f"; {depth}-bit" + (f", samples >> {shift}" if shift else "")
+
+
+class ToolError(RuntimeError):
+    def __init__(self, msg, returncode):
+        super().__init__(msg)
+        self.returncode = returncode
+
+
 def run(cmd, cwd=None):
-    """Run cmd; return wall seconds. Raise with stderr on failure."""
+    """Run cmd; return wall seconds. Raise ToolError with stderr on failure."""
     t0 = time.perf_counter()
     p = subprocess.run(cmd, cwd=cwd, stdin=subprocess.DEVNULL, stdout=subprocess.PIPE, stderr=subprocess.PIPE,
                        timeout=TIMEOUT)
     dt = time.perf_counter() - t0
     if p.returncode != 0:
-        raise RuntimeError(f"{' '.join(cmd)} failed ({p.returncode}): {p.stderr.decode(errors='replace')[-600:]}")
+        raise ToolError(f"{' '.join(cmd)} failed ({p.returncode}): {p.stderr.decode(errors='replace')[-600:]}",
+                        p.returncode)
     return dt
 
 
@@ -246,12 +307,18 @@ def opj_nres(w, h):
 
 
 def codec_j2k_comp(vol, path, budget, bpv, work, ctx):
+    s = ctx["samples"]
+    depth, shift = codec_depth(s["bits"], OPJ_DEPTHS)
     z0, y0, x0 = vol.shape
-    pv, pad_note = opj_raw_pad(vol.astype(np.uint8))
+    pv, pad_note = opj_raw_pad(coded(s, depth, shift), depth)
+    pad_note = depth_note(depth, shift) + pad_note
     z, y, x = pv.shape
-    raw = os.path.join(work, "vol.raw")
+    # deeper than 8 bits: 2 bytes a sample, little-endian (.rawl; opj_decompress writes .rawl the same way,
+    # while its .raw output is not the big-endian that opj_compress reads from .raw)
+    ext = "raw" if depth == 8 else "rawl"
+    raw = os.path.join(work, f"vol.{ext}")
     pv.tofile(raw)
-    rawbytes = pv.size
+    rawbytes = pv.size * depth / 8  # what the -r ratios refer to
     nres = opj_nres(x, y)
     best_all = []
     for lossy97 in (True, False):
@@ -262,19 +329,19 @@ def codec_j2k_comp(vol, path, budget, bpv, work, ctx):
             if key in tr.all:
                 return tr.all[key]
             out = os.path.join(work, f"o_{lossy97:d}_{key}.j2k")
-            t_enc = run(["opj_compress", "-i", raw, "-o", out, "-F", f"{x},{y},{z},8,u", "-r", f"{r:.6f}",
+            t_enc = run(["opj_compress", "-i", raw, "-o", out, "-F", f"{x},{y},{z},{depth},u", "-r", f"{r:.6f}",
                          "-mct", "0"] + opj_common(lossy97, nres))
             size = os.path.getsize(out)
             res = dict(bytes=size, enc=t_enc, psnr=float("-inf"), dec=None,
                        setting=f"-r {r:.4f} {'-I (9/7)' if lossy97 else '5/3'} -n {nres}{pad_note}")
             if size <= budget:
-                dec = os.path.join(work, "dec.raw")
+                dec = os.path.join(work, f"dec.{ext}")
                 res["dec"] = run(["opj_decompress", "-i", out, "-o", dec])
-                rec = np.fromfile(dec, dtype=np.uint8)
+                rec = np.fromfile(dec, dtype=pv.dtype)
                 if rec.size != pv.size:
                     raise RuntimeError(f"opj_decompress wrote {rec.size} samples, expected {pv.size}")
                 rec = rec.reshape(pv.shape)[:z0, :y0, :x0]
-                res["psnr"] = psnr(vol, rec, 255)
+                res["psnr"] = psnr(vol, restore(s, rec, shift), ctx["peak"])
                 os.remove(dec)
             os.remove(out)
             return tr.add(key, res)
@@ -284,26 +351,30 @@ def codec_j2k_comp(vol, path, budget, bpv, work, ctx):
     return pick(best_all, budget)
 
 
-def opj_raw_pad(vol):
+def opj_raw_pad(vol, bits):
     """opj_compress (OpenJPEG 2.5 convert.c rawtoimage_common) rejects raw input when width & height & ncomp &
     bitdepth != 0 (a bitwise-AND bug: with 8-bit data it fails whenever width, height and ncomp all have bit 3
-    set). Work around it with the cheapest edge-replicated padding of x, y or z that clears bit 3 of one of them;
-    the padding is cropped before PSNR and its bits count against the budget."""
+    set; checked to hold for 12-bit data too). Work around it with the cheapest edge-replicated padding of x,
+    y or z that makes the AND 0; the padding is cropped before PSNR and its bits count against the budget."""
     z, y, x = vol.shape
-    if (x & y & z & 8) == 0:
+    if (x & y & z & bits) == 0:
         return vol, ""
+    dims = dict(x=x, y=y, z=z)
 
-    def nxt(n):
-        m = n
-        while m & 8:
+    def nxt(axis):
+        others = bits
+        for a, n in dims.items():
+            if a != axis:
+                others &= n
+        m = dims[axis]
+        while m & others:
             m += 1
         return m
-    cands = [((nxt(x) - x) * y * z, "x", nxt(x)), ((nxt(y) - y) * x * z, "y", nxt(y)),
-             ((nxt(z) - z) * x * y, "z", nxt(z))]
+    cands = [((nxt(a) - dims[a]) * (x * y * z // dims[a]), a, nxt(a)) for a in "xyz"]
     _, axis, n = min(cands)
     pads = {"z": ((0, n - z), (0, 0), (0, 0)), "y": ((0, 0), (0, n - y), (0, 0)), "x": ((0, 0), (0, 0), (0, n - x))}
     return (np.pad(vol, pads[axis], mode="edge"),
-            f"; {axis} padded {dict(x=x, y=y, z=z)[axis]}->{n} (opj_compress -F bitwise-AND bug workaround)")
+            f"; {axis} padded {dims[axis]}->{n} (opj_compress -F bitwise-AND bug workaround)")
 
 
 def mosaic_layout(z, y, x):
@@ -318,17 +389,21 @@ def mosaic_layout(z, y, x):
 
 
 def codec_j2k_mosaic(vol, path, budget, bpv, work, ctx):
+    s = ctx["samples"]
+    depth, shift = codec_depth(s["bits"], OPJ_DEPTHS)
+    cv = coded(s, depth, shift)
     z, y, x = vol.shape
     cols, rows = mosaic_layout(z, y, x)
-    img = np.zeros((rows * y, cols * x), dtype=np.uint8)
+    img = np.zeros((rows * y, cols * x), dtype=cv.dtype)
     for k in range(z):
         r, c = divmod(k, cols)
-        img[r * y:(r + 1) * y, c * x:(c + 1) * x] = vol[k]
+        img[r * y:(r + 1) * y, c * x:(c + 1) * x] = cv[k]
     H, W = img.shape
     pgm = os.path.join(work, "mosaic.pgm")
     with open(pgm, "wb") as f:
-        f.write(f"P5\n{W} {H}\n255\n".encode())
-        f.write(img.tobytes())
+        # opj_compress takes the precision from maxval; PGM samples deeper than 8 bits are 2 bytes big-endian
+        f.write(f"P5\n{W} {H}\n{(1 << depth) - 1}\n".encode())
+        f.write(img.astype(">u2" if depth > 8 else np.uint8).tobytes())
     nres = opj_nres(W, H)
     best_all = []
     for lossy97 in (True, False):
@@ -343,21 +418,21 @@ def codec_j2k_mosaic(vol, path, budget, bpv, work, ctx):
             size = os.path.getsize(out)
             res = dict(bytes=size, enc=t_enc, psnr=float("-inf"), dec=None,
                        setting=f"-r {r:.4f} {'-I (9/7)' if lossy97 else '5/3'} -n {nres}; mosaic {cols}x{rows} "
-                               f"tiles = {W}x{H} px, empty tiles 0")
+                               f"tiles = {W}x{H} px, empty tiles 0{depth_note(depth, shift)}")
             if size <= budget:
                 dec = os.path.join(work, "dec.pgm")
                 res["dec"] = run(["opj_decompress", "-i", out, "-o", dec])
                 rimg = read_pgm(dec)
-                rec = np.empty_like(vol)
+                rec = np.empty_like(cv)
                 for k in range(z):
                     rr, c = divmod(k, cols)
                     rec[k] = rimg[rr * y:(rr + 1) * y, c * x:(c + 1) * x]
-                res["psnr"] = psnr(vol, rec, 255)
+                res["psnr"] = psnr(vol, restore(s, rec, shift), ctx["peak"])
                 os.remove(dec)
             os.remove(out)
             return tr.add(key, res)
 
-        search_continuous(trial, budget, img.size / budget, 1.0, img.size * 4.0, 9)
+        search_continuous(trial, budget, img.size * depth / 8 / budget, 1.0, img.size * depth / 2, 9)
         best_all.append((tr.best(), tr.smallest()))
     return pick(best_all, budget)
 
@@ -378,10 +453,11 @@ def read_pgm(path):
             pos += 1
         tokens.append(data[start:pos].decode())
     pos += 1
-    if tokens[0] != "P5" or int(tokens[3]) > 255:
-        raise ValueError(f"{path}: only 8-bit P5 PGM is supported")
+    if tokens[0] != "P5" or int(tokens[3]) > 65535:
+        raise ValueError(f"{path}: only P5 PGM is supported")
     w, h = int(tokens[1]), int(tokens[2])
-    return np.frombuffer(data[pos:pos + w * h], dtype=np.uint8).reshape(h, w)
+    dt = np.dtype(np.uint8) if int(tokens[3]) < 256 else np.dtype(">u2")  # maxval > 255: 2 bytes big-endian
+    return np.frombuffer(data[pos:pos + w * h * dt.itemsize], dtype=dt).reshape(h, w)
 
 
 def pad_xy(vol, mult):
@@ -393,70 +469,120 @@ def pad_xy(vol, mult):
 
 
 def codec_x265(vol, path, budget, bpv, work, ctx):
+    s = ctx["samples"]
+    depth, shift = codec_depth(s["bits"], VIDEO_DEPTHS)
     z, y, x = vol.shape
-    pv = pad_xy(vol.astype(np.uint8), 8)
+    pv = pad_xy(coded(s, depth, shift), 8)
     _, Y, X = pv.shape
-    ctu = 64 if min(X, Y) >= 64 else (32 if min(X, Y) >= 32 else 16)
     yuv = os.path.join(work, "vol.yuv")
     pv.tofile(yuv)
-    tr = Trials(budget)
-    base = ["x265", "--input", yuv, "--input-res", f"{X}x{Y}", "--input-csp", "i400", "--input-depth", "8",
-            "--fps", "25", "--preset", "slower", "--tune", "psnr", "--ctu", str(ctu), "--no-info"]
+    # Above 8 bits: no --profile (x265 refuses main10/main12 with i400 input; it codes a RExt monochrome
+    # stream), and PSNR from an ffmpeg decode of every fitting trial because Debian's multilib x265 3.5 writes
+    # its --recon file with 8-bit samples for a 10/12-bit encode.
+    if depth > 8 and shutil.which("ffmpeg") is None:
+        raise RuntimeError(f"ffmpeg is needed to decode {depth}-bit x265 streams (apt-get install ffmpeg)")
+    pix_fmt = "gray" if depth == 8 else f"gray{depth}le"
+    base = ["x265", "--input", yuv, "--input-res", f"{X}x{Y}", "--input-csp", "i400", "--input-depth", str(depth),
+            "--output-depth", str(depth), "--fps", "25", "--preset", "slower", "--tune", "psnr", "--no-info"]
 
-    def trial(crf):
-        key = round(crf, 4)
-        if key in tr.all:
-            return tr.all[key]
-        out = os.path.join(work, "out.hevc")
-        recon = os.path.join(work, "recon.yuv")
-        t_enc = run(base + ["--crf", f"{crf:.4f}", "--recon", recon, "-o", out])
-        size = os.path.getsize(out)
-        res = dict(bytes=size, enc=t_enc, psnr=float("-inf"), dec=None,
-                   setting=f"--crf {crf:.3f} --ctu {ctu}; {X}x{Y} (padded from {x}x{y})" if (X, Y) != (x, y)
-                   else f"--crf {crf:.3f} --ctu {ctu}")
-        if size <= budget:
-            rec = np.fromfile(recon, dtype=np.uint8).reshape(z, Y, X)[:, :y, :x]
-            res["psnr"] = psnr(vol, rec, 255)
-            keep = os.path.join(work, f"out_{key}.hevc")
-            shutil.copyfile(out, keep)
-            res["file"] = keep
-            res["recon"] = rec
-        return tr.add(key, res)
+    def ffmpeg_decode(stream):
+        """(seconds, decoded samples cropped to the volume, or None if ffmpeg returned the wrong count)"""
+        dec = os.path.join(work, "dec.yuv")
+        secs = run(["ffmpeg", "-v", "error", "-y", "-threads", "1", "-i", stream, "-f", "rawvideo",
+                    "-pix_fmt", pix_fmt, dec])
+        d = np.fromfile(dec, dtype=pv.dtype)
+        os.remove(dec)
+        return secs, (d.reshape(z, Y, X)[:, :y, :x] if d.size == z * Y * X else None), d.size
 
-    search_linear(trial, budget, 28.0, 0.0, 51.0, 9)
+    def search(ctu):
+        tr = Trials(budget)
+
+        def trial(crf):
+            key = round(crf, 4)
+            if key in tr.all:
+                return tr.all[key]
+            out = os.path.join(work, "out.hevc")
+            recon = os.path.join(work, "recon.yuv")
+            t_enc = run(base + ["--ctu", str(ctu), "--crf", f"{crf:.4f}", "-o", out] +
+                        (["--recon", recon] if depth == 8 else []))
+            size = os.path.getsize(out)
+            setting = f"--crf {crf:.3f} --ctu {ctu}"
+            if (X, Y) != (x, y):
+                setting += f"; {X}x{Y} (padded from {x}x{y})"
+            setting += depth_note(depth, shift)
+            res = dict(bytes=size, enc=t_enc, psnr=float("-inf"), dec=None, setting=setting)
+            if size <= budget:
+                if depth == 8:
+                    rec = np.fromfile(recon, dtype=np.uint8).reshape(z, Y, X)[:, :y, :x]
+                else:
+                    res["dec"], rec, n = ffmpeg_decode(out)
+                    if rec is None:
+                        raise RuntimeError(f"ffmpeg decoded {n} samples, expected {z * Y * X}")
+                res["psnr"] = psnr(vol, restore(s, rec, shift), ctx["peak"])
+                keep = os.path.join(work, f"out_{key}.hevc")
+                shutil.copyfile(out, keep)
+                res["file"] = keep
+                res["recon"] = rec
+            return tr.add(key, res)
+
+        search_linear(trial, budget, 28.0, 0.0, 51.0, 9)
+        return tr
+
+    # the largest CTU the picture holds (x265 refuses pictures smaller than one CTU). Debian's x265 3.5 aborts
+    # (heap corruption) on some 10/12-bit encodes, e.g. 48x64 at --ctu 32 (64x64 at 64 or 32 is fine): then
+    # the search is redone with the next smaller CTU
+    ctus = [c for c in (64, 32, 16) if c <= min(X, Y)] or [16]
+    aborted = []
+    for ctu in ctus:
+        try:
+            tr = search(ctu)
+            break
+        except ToolError as e:
+            if depth == 8 or e.returncode >= 0 or ctu == ctus[-1]:
+                raise
+            aborted.append(f"x265 aborted ({e.returncode}) at --ctu {ctu}")
     best = tr.best()
     if best is None:
-        return nofit(tr.smallest(), budget, "x265 at --crf 51")
-    # real decode of the chosen stream with ffmpeg (x265 has no decoder), check it equals the recon
-    if shutil.which("ffmpeg"):
-        dec = os.path.join(work, "dec.yuv")
-        best["dec"] = run(["ffmpeg", "-v", "error", "-y", "-threads", "1", "-i", best["file"], "-f", "rawvideo",
-                           "-pix_fmt", "gray", dec])
-        d = np.fromfile(dec, dtype=np.uint8)
-        if d.size != z * Y * X:
-            best["setting"] += f"; ffmpeg decode has {d.size} samples (expected {z * Y * X}): PSNR from recon"
+        return nofit(tr.smallest(), budget, "x265 at --crf 51" + "".join(f"; {a}" for a in aborted))
+    best["setting"] += "".join(f"; {a}" for a in aborted)
+    if depth > 8:
+        best["setting"] += "; PSNR from the ffmpeg decode"
+    # 8 bits: real decode of the chosen stream with ffmpeg (x265 has no decoder), check it equals the recon
+    elif shutil.which("ffmpeg"):
+        best["dec"], d, n = ffmpeg_decode(best["file"])
+        if d is None:
+            best["setting"] += f"; ffmpeg decode has {n} samples (expected {z * Y * X}): PSNR from recon"
+        elif np.array_equal(d, best["recon"]):
+            best["setting"] += "; ffmpeg decode == recon"
         else:
-            d = d.reshape(z, Y, X)[:, :y, :x]
-            if np.array_equal(d, best["recon"]):
-                best["setting"] += "; ffmpeg decode == recon"
-            else:
-                best["setting"] += f"; ffmpeg decode != recon (decode PSNR {psnr(vol, d, 255):.3f})"
-                best["psnr"] = psnr(vol, d, 255)
+            best["psnr"] = psnr(vol, restore(s, d, shift), ctx["peak"])
+            best["setting"] += f"; ffmpeg decode != recon (decode PSNR {best['psnr']:.3f})"
     else:
         best["setting"] += "; PSNR from x265 --recon (ffmpeg missing: no decode time)"
     return best
 
 
 def codec_av1(vol, path, budget, bpv, work, ctx):
+    s = ctx["samples"]
+    depth, shift = codec_depth(s["bits"], VIDEO_DEPTHS)
+    cv = coded(s, depth, shift)
     z, y, x = vol.shape
     container = ctx["av1_container"]
     y4m = os.path.join(work, "vol.y4m")
+    # aomenc's y4m reader has no 10/12-bit mono: above 8 bits the input is 4:2:0 with flat dummy chroma, which
+    # --monochrome drops (the stream and aomdec's output are luma only)
+    cw, ch = (x + 1) // 2, (y + 1) // 2
+    chroma = b"" if depth == 8 else np.full(2 * cw * ch, 1 << (depth - 1), dtype="<u2").tobytes()
+    cspace = "Cmono" if depth == 8 else f"C420p{depth} XYSCSS=420P{depth}"
     with open(y4m, "wb") as f:
         # frame rate only scales the VBR target (kbit/s, an integer): 1000 fps gives ~1000/8/1000*frames B steps
-        f.write(f"YUV4MPEG2 W{x} H{y} F{AV1_FPS}:1 Ip A1:1 Cmono\n".encode())
+        f.write(f"YUV4MPEG2 W{x} H{y} F{AV1_FPS}:1 Ip A1:1 {cspace}\n".encode())
         for k in range(z):
             f.write(b"FRAME\n")
-            f.write(vol[k].astype(np.uint8).tobytes())
+            f.write(cv[k].tobytes())
+            f.write(chroma)
+    # 12 bits needs AV1's professional profile (2); 8 and 10 bits fit the main profile (0)
+    depth_args = [f"--input-bit-depth={depth}", f"--bit-depth={depth}"] + (["--profile=2"] if depth == 12 else [])
     tr = Trials(budget)
 
     def trial(cq):
@@ -474,24 +600,24 @@ def codec_av1(vol, path, budget, bpv, work, ctx):
             rc = ["--end-usage=q", f"--cq-level={cq}"]
             label = f"--end-usage=q --cq-level={cq}"
         out = os.path.join(work, f"out.{container}")
-        t_enc = run(["aomenc", "--input-bit-depth=8", "--bit-depth=8", "--monochrome"] + rc +
+        t_enc = run(["aomenc"] + depth_args + ["--monochrome"] + rc +
                     ["--cpu-used=4", f"--{container}", "-q", "-o", out, y4m])
         size = os.path.getsize(out)
         res = dict(bytes=size, enc=t_enc, psnr=float("-inf"), dec=None,
-                   setting=f"{label} --cpu-used=4 --{container} (y4m Cmono input)")
+                   setting=f"{label} --cpu-used=4 --{container} (y4m {cspace.split()[0]} input)"
+                           + depth_note(depth, shift))
         if size <= budget:
             dec = os.path.join(work, "dec.yuv")
             res["dec"] = run(["aomdec", "--rawvideo", "-o", dec, out])
-            d = np.fromfile(dec, dtype=np.uint8)
+            d = np.fromfile(dec, dtype=cv.dtype)  # aomdec writes 2 bytes a sample above 8 bits
             if d.size == z * y * x:
                 rec = d.reshape(z, y, x)
             else:  # 4:2:0 output with dummy chroma: take the luma planes
-                cw, ch = (x + 1) // 2, (y + 1) // 2
                 fs = y * x + 2 * cw * ch
                 if d.size != z * fs:
-                    raise RuntimeError(f"aomdec wrote {d.size} bytes, expected {z * y * x} or {z * fs}")
+                    raise RuntimeError(f"aomdec wrote {d.size} samples, expected {z * y * x} or {z * fs}")
                 rec = d.reshape(z, fs)[:, :y * x].reshape(z, y, x)
-            res["psnr"] = psnr(vol, rec, 255)
+            res["psnr"] = psnr(vol, restore(s, rec, shift), ctx["peak"])
             os.remove(dec)
         os.remove(out)
         return tr.add(key, res)
@@ -526,6 +652,9 @@ CODEC_FUNCS = {"dcv": codec_dcv, "j2k-comp": codec_j2k_comp, "j2k-mosaic": codec
 # ------------------------------------------------------------------------------------------------------ output
 
 
+ROW_KEYS = ["volume", "bpv", "budget", "codec", "bytes", "abpv", "psnr", "enc", "dec", "setting"]
+
+
 def fmt(v, spec):
     return "-" if v is None else format(v, spec)
 
@@ -543,7 +672,18 @@ def markdown(rows, notes):
     return text
 
 
-def plot(rows, outdir):
+def read_rows(path):
+    """The rows of an earlier run's rd.csv, typed as this run's rows (empty cells -> None)."""
+    types = dict(bpv=float, budget=int, bytes=int, abpv=float, psnr=float, enc=float, dec=float)
+    rows = []
+    with open(path, newline="") as f:
+        for r in csv.DictReader(f):
+            rows.append({k: (r.get(k) or "") if k in ("volume", "codec", "setting")
+                         else (types[k](r[k]) if r.get(k) else None) for k in ROW_KEYS})
+    return rows
+
+
+def plot(rows, outdir, peaks):
     try:
         import matplotlib
         matplotlib.use("Agg")
@@ -566,7 +706,7 @@ def plot(rows, outdir):
         ax.set_xticks(budgets)
         ax.set_xticklabels([f"{b:g}" for b in budgets])
         ax.set_xlabel("bits per voxel (whole file)")
-        ax.set_ylabel("PSNR (dB, peak 255)")
+        ax.set_ylabel(f"PSNR (dB, peak {peaks[vol]:g})" if vol in peaks else "PSNR (dB)")
         ax.set_title(f"{vol}: PSNR vs rate")
         ax.grid(True, which="both", alpha=0.3)
         ax.legend()
@@ -580,30 +720,60 @@ def plot(rows, outdir):
 
 # -------------------------------------------------------------------------------------------------------- main
 
+def volume_info(vname, vol):
+    """(PSNR peak, note or None) for a volume."""
+    if vol.dtype == np.uint8:
+        return 255.0, None
+    lo, hi = vol.min(), vol.max()
+    peak = float(hi) - float(lo)
+    s = peer_samples(vol)
+    if s is None:
+        return peak, f"{vname} is {vol.dtype} ({lo:g}..{hi:g}): dcv only (peers need integers), PSNR peak = {peak:g}"
+    deps = []
+    for name, depths in (("OpenJPEG", OPJ_DEPTHS), ("x265", VIDEO_DEPTHS), ("AV1", VIDEO_DEPTHS)):
+        d, sh = codec_depth(s["bits"], depths)
+        deps.append(f"{name} {d}-bit" + (f" after a right shift by {sh} (range needs {s['bits']} bits; decoded "
+                                         f"values go to the middle of the dropped interval)" if sh else ""))
+    note = (f"{vname} is {vol.dtype} ({lo}..{hi}): PSNR peak = max - min = {peak:g}; the peers code value - min "
+            f"(min = {lo}) as {s['bits']}-bit unsigned samples ({', '.join(deps)}), the minimum is added back after "
+            f"decoding and PSNR is against the original values")
+    if lo != 0:
+        note += "; the minimum would be a few bytes of side information, not counted in the peers' bytes"
+    return peak, note
+
+
 def main():
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("--data", default=DEFAULT_DATA, help="folder of the *.nrrd volumes (default ../shared/data)")
-    ap.add_argument("--volumes", nargs="+", help="file names in --data (default: all *.nrrd but norm-256.nrrd)")
+    ap.add_argument("--volumes", nargs="+", help="file names in --data (default: all *.nrrd)")
     ap.add_argument("--bpv", nargs="+", type=float, default=DEFAULT_BPVS, help="budgets in bits per voxel")
     ap.add_argument("--codecs", nargs="+", choices=CODECS, default=CODECS)
     ap.add_argument("--dcv", default=os.path.join(REPO, "build", "cli", "dcv"))
     ap.add_argument("--out", default=os.path.join(REPO, "build", "rd"), help="output folder (default build/rd)")
+    ap.add_argument("--merge", nargs="+", metavar="CSV", default=[],
+                    help="rd.csv files of earlier runs: their rows are combined with this run's (this run wins for "
+                         "the same volume, bpv and codec; a later CSV wins over an earlier one) in the table, CSV "
+                         "and plots")
     ap.add_argument("--av1-container", choices=["obu", "ivf"], default="obu",
                     help="aomenc output: obu (Section 5 low-overhead stream, default) or ivf (+32 B +12 B/frame)")
     ap.add_argument("--keep", action="store_true", help="keep the work folders")
     args = ap.parse_args()
 
     notes = []
+    merged = []
+    for fn in args.merge:  # read first: a bad path should fail before the long run
+        merged.append((fn, read_rows(fn)))
     # tools
     missing = []
-    if not (os.path.isfile(args.dcv) and os.access(args.dcv, os.X_OK)):
+    if "dcv" in args.codecs and not (os.path.isfile(args.dcv) and os.access(args.dcv, os.X_OK)):
         missing.append(f"dcv ({args.dcv}: build the project first)")
     for codec in args.codecs:
         for t in TOOLS.get(codec, []):
             if shutil.which(t) is None and not any(t in m for m in missing):
                 missing.append(f"{t} (apt-get install {APT[t]})")
     if "x265" in args.codecs and shutil.which("ffmpeg") is None:
-        notes.append("ffmpeg missing (apt-get install ffmpeg): x265 PSNR is from its --recon output, no decode time")
+        notes.append("ffmpeg missing (apt-get install ffmpeg): x265 PSNR is from its --recon output, no decode time "
+                     "(and no x265 above 8 bits)")
     if missing:
         print("rd_benchmark: MISSING TOOLS: " + "; ".join(missing), file=sys.stderr)
         notes.append("missing tools, their codecs are skipped: " + "; ".join(missing))
@@ -614,24 +784,23 @@ def main():
     if args.volumes:
         vols = args.volumes
     else:
-        vols = sorted(f for f in os.listdir(args.data) if f.endswith(".nrrd") and f != "norm-256.nrrd")
+        vols = sorted(f for f in os.listdir(args.data) if f.endswith(".nrrd"))
     os.makedirs(args.out, exist_ok=True)
     ctx = {"dcv": args.dcv, "av1_container": args.av1_container}
     rows = []
+    peaks = {}
     for vname in vols:
         vpath = os.path.join(args.data, vname)
         vol = read_nrrd(vpath)
-        is8 = vol.dtype == np.uint8
-        if is8:
-            ctx["peak"] = 255.0
-        else:
-            ctx["peak"] = float(vol.max()) - float(vol.min())
-            notes.append(f"{vname} is {vol.dtype} ({vol.min()}..{vol.max()}): dcv only (the peers are run on 8-bit "
-                         f"volumes only), PSNR peak = max - min = {ctx['peak']:g}")
+        ctx["peak"], vnote = volume_info(vname, vol)
+        peaks[vname] = ctx["peak"]
+        ctx["samples"] = peer_samples(vol)
+        if vnote:
+            notes.append(vnote)
         for bpv in args.bpv:
             budget = int(math.floor(bpv * vol.size / 8))
             for codec in usable:
-                if codec != "dcv" and not is8:
+                if codec != "dcv" and ctx["samples"] is None:
                     continue
                 work = tempfile.mkdtemp(prefix=f"{os.path.splitext(vname)[0]}_{bpv:g}_{codec}_",
                                         dir=args.out)
@@ -650,28 +819,57 @@ def main():
                       f"bytes={row['bytes']} PSNR={fmt(row['psnr'], '.3f')} ({row['setting']})",
                       file=sys.stderr, flush=True)
 
-    notes.append("PSNR: peak 255 (8-bit), MSE over all voxels; budget B = floor(bpv * voxels / 8) bytes, whole "
-                 "output file; each peer: best PSNR among the tried settings whose file has <= B bytes; encode/decode "
-                 "seconds are wall-clock of the chosen setting's CLI run(s), file I/O included; every tool with its default "
-                 "threading (x265: its thread pool on all cores) except the x265 decode, ffmpeg -threads 1.")
+    if merged:
+        # earlier runs first, so that a later CSV and then this run replace their rows
+        table = {}
+        for fn, mrows in merged:
+            for r in mrows:
+                table[(r["volume"], r["bpv"], r["codec"])] = r
+        replaced = sum((r["volume"], r["bpv"], r["codec"]) in table for r in rows)
+        taken = len(table) - replaced
+        for r in rows:
+            table[(r["volume"], r["bpv"], r["codec"])] = r
+        notes.append(f"{taken} rows merged from {', '.join(fn for fn, _ in merged)} ({replaced} more replaced by "
+                     f"this run's rows); their encode/decode times are from those runs")
+        rows = list(table.values())
+        # volume notes and PSNR peaks of the volumes that only come from the merged rows
+        for vname in sorted({r["volume"] for r in rows} - set(peaks)):
+            vpath = os.path.join(args.data, vname)
+            if os.path.isfile(vpath):
+                peaks[vname], vnote = volume_info(vname, read_nrrd(vpath))
+                if vnote:
+                    notes.append(vnote)
+    order = {c: i for i, c in enumerate(CODECS)}
+    rows.sort(key=lambda r: (r["volume"], r["bpv"], order.get(r["codec"], len(CODECS)), r["codec"]))
+
+    notes.append("PSNR: peak 255 for uint8 volumes, max - min of the original for other types, MSE over all voxels; "
+                 "budget B = floor(bpv * voxels / 8) bytes, whole output file; each peer: best PSNR among the tried "
+                 "settings whose file has <= B bytes; encode/decode seconds are wall-clock of the chosen setting's "
+                 "CLI run(s), file I/O included; every tool with its default threading (x265: its thread pool on all "
+                 "cores) except the x265 decode, ffmpeg -threads 1.")
     notes.append("x265: padded (edge replication) to a multiple of 8 in x and y and cropped before PSNR; --no-info "
                  "(no encoder-settings SEI); --ctu lowered to 32/16 when a side is < 64/32 (x265 refuses pictures "
-                 "smaller than one CTU).")
+                 "smaller than one CTU) or, above 8 bits, when x265 aborts (a crash of Debian's x265 3.5 on some "
+                 "10/12-bit picture sizes); above 8 bits --input-depth/--output-depth 10 or 12 without --profile (x265 "
+                 "refuses main10/main12 with 4:0:0 input and codes a RExt monochrome stream) and PSNR from the ffmpeg "
+                 "decode (Debian's x265 writes an 8-bit --recon for 10/12-bit encodes).")
     notes.append(f"av1: aomenc default 2-pass good-quality mode, output --{args.av1_container}; both "
                  "--end-usage=q (--cq-level searched) and --end-usage=vbr (--target-bitrate searched) are tried, the "
-                 "best fitting PSNR is reported.")
+                 "best fitting PSNR is reported; above 8 bits --bit-depth/--input-bit-depth 10 or 12 (12: --profile=2) "
+                 "from a 4:2:0 y4m whose flat chroma --monochrome drops.")
     notes.append("j2k: both the 9/7 irreversible (-I) and 5/3 reversible wavelets are searched; the better fitting "
-                 "one is reported.")
+                 "one is reported; above 8 bits the precision is the range's bit depth (raw: -F X,Y,Z,bits,u with "
+                 "16-bit little-endian .rawl samples; mosaic: PGM with maxval 2^bits - 1).")
     text = markdown(rows, notes)
     print(text)
     with open(os.path.join(args.out, "rd.md"), "w") as f:
         f.write("# Rate-distortion comparison\n\nCommand: `" + " ".join([os.path.relpath(sys.argv[0], REPO)] +
                                                                        sys.argv[1:]) + "`\n\n" + text)
     with open(os.path.join(args.out, "rd.csv"), "w", newline="") as f:
-        w = csv.DictWriter(f, fieldnames=list(rows[0].keys()) if rows else ["volume"])
+        w = csv.DictWriter(f, fieldnames=ROW_KEYS)
         w.writeheader()
         w.writerows(rows)
-    for fn in plot(rows, args.out):
+    for fn in plot(rows, args.out, peaks):
         print(f"plot: {os.path.relpath(fn, REPO)}", file=sys.stderr)
     print(f"table: {os.path.relpath(os.path.join(args.out, 'rd.md'), REPO)}", file=sys.stderr)
     return 0

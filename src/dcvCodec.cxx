@@ -181,4 +181,70 @@ DecodePayload(const std::vector<uint8_t> & payload,
   return a;
 }
 
+BudgetResult
+ApproximateToBudget(RefinementEngine &                         engine,
+                    std::size_t                                payloadBytes,
+                    double                                     q0,
+                    double                                     q,
+                    const RefinementEngine::ProgressFunction & progress)
+{
+  const double budget = double(payloadBytes);
+  const double voxels = double(engine.GetGrid().NumberOfVoxels());
+  // First count: solve n (log2(voxels / n) + 4) = 8 budget by a few fixed-point steps.
+  double n = std::max(8.0, budget * 8.0 / 16.0);
+  for (int i = 0; i < 20; ++i)
+  {
+    n = std::clamp(budget * 8.0 / (std::log2(std::max(1.0, voxels / n)) + 6.5), 8.0, voxels);
+  }
+  BudgetResult result{ {}, std::size_t(n), 0 };
+  engine.Approximate(result.firstCount, [&](double f) {
+    if (progress)
+      progress(0.8 * f);
+  });
+  auto encode = [&] { result.payload = EncodePayload(engine.GetApproximation(), q0, q); };
+  encode();
+  // Adjust towards 98.5% of the budget, at most 6 steps (usually 1 or 2).
+  for (unsigned step = 0; step < 6; ++step)
+  {
+    const double size = double(result.payload.size());
+    if (size <= budget && size >= 0.97 * budget)
+    {
+      break;
+    }
+    const std::size_t count = engine.GetNumberOfPoints();
+    const double      bitsPerPoint = size * 8.0 / double(count);
+    std::size_t       target = std::size_t(std::max(8.0, std::floor(0.985 * budget * 8.0 / bitsPerPoint)));
+    if (target == count)
+    {
+      target = size > budget ? count - 1 : count + 1;
+    }
+    engine.Resize(target);
+    ++result.adjustments;
+    if (progress)
+      progress(0.8 + 0.03 * double(step + 1));
+    encode();
+    if (engine.GetNumberOfPoints() == count)
+    {
+      break; // exact approximation: no point left to add
+    }
+  }
+  // Whatever is still over the budget goes by decimation alone.
+  while (double(result.payload.size()) > budget)
+  {
+    const std::size_t count = engine.GetNumberOfPoints();
+    if (count <= 8)
+    {
+      throw std::length_error("even the 8 corners need " + std::to_string(result.payload.size()) +
+                              " bytes of payload, more than the " + std::to_string(payloadBytes) + " allowed");
+    }
+    const double excess = 1.0 - 0.985 * budget / double(result.payload.size());
+    engine.Resize(count - std::max<std::size_t>(1, std::size_t(std::ceil(excess * double(count)))));
+    ++result.adjustments;
+    encode();
+  }
+  if (progress)
+    progress(1.0);
+  return result;
+}
+
 } // namespace dcv

@@ -632,6 +632,35 @@ RefinementEngine::Decimate(std::size_t count)
   }
 }
 
+void
+RefinementEngine::Resize(std::size_t numberOfPoints)
+{
+  const std::size_t n = GetNumberOfPoints();
+  numberOfPoints = std::max<std::size_t>(numberOfPoints, NumberOfCorners);
+  if (numberOfPoints == n)
+  {
+    return;
+  }
+  using Clock = std::chrono::steady_clock;
+  auto  start = Clock::now();
+  if (numberOfPoints < n)
+  {
+    Decimate(n - numberOfPoints);
+    m_Impl->timings.decimation += std::chrono::duration<double>(Clock::now() - start).count();
+  }
+  else
+  {
+    Refine(numberOfPoints);
+    m_Impl->timings.refinement += std::chrono::duration<double>(Clock::now() - start).count();
+  }
+  if (m_Impl->parameters.leastSquares)
+  {
+    start = Clock::now();
+    OptimizeValues();
+    m_Impl->timings.leastSquares += std::chrono::duration<double>(Clock::now() - start).count();
+  }
+}
+
 double
 RefinementEngine::OptimizeValues()
 {

@@ -261,6 +261,19 @@ TEST_F(CommandLine, CompressDecompressInfo)
   EXPECT_EQ(out->GetLargestPossibleRegion(), in->GetLargestPossibleRegion());
 }
 
+TEST_F(CommandLine, CompressRefusesABudgetTooSmallAndWritesNothing)
+{
+  const std::string phantom = Path("phantom.nrrd");
+  ASSERT_EQ(RunDcv("phantom " + phantom + " --size 24").status, 0);
+  const std::string packed = Path("tiny.dcv");
+  const Result      r = RunDcv("compress " + phantom + " " + packed + " --bpv 0.01"); // 17 bytes
+  EXPECT_NE(r.status, 0);
+  EXPECT_NE(r.output.find("cannot compress"), std::string::npos) << r.output;
+  EXPECT_NE(r.output.find("phantom.nrrd"), std::string::npos) << r.output;
+  EXPECT_NE(r.output.find("too few"), std::string::npos) << r.output;
+  EXPECT_FALSE(fs::exists(packed));
+}
+
 TEST_F(CommandLine, CompressIsReproducible)
 {
   const std::string phantom = Path("phantom.nrrd");

@@ -215,4 +215,64 @@ TEST(Codec, PayloadDecodesToTheEngineOutputBitForBit)
   EXPECT_THROW(EncodePayload(off, 0.0, 4.0), std::invalid_argument);
 }
 
+/** ApproximateToBudget on a volume: the payload fits `fraction` bits per voxel (less the header),
+ * fills at least 97% of it, and is the engine's final approximation, decoded bit for bit. */
+void
+ExpectBudgetMet(const std::vector<float> & image, const GridSize & grid, double peak, double q, double bpv)
+{
+  RefinementParameters p = ParametersForMode(Mode::Best);
+  const auto           range = std::minmax_element(image.begin(), image.end());
+  p.quantizationStep = q;
+  p.quantizationOrigin = *range.first;
+  p.valueMin = *range.first;
+  p.valueMax = *range.second;
+  p.peak = peak;
+  RefinementEngine   engine(image.data(), grid, p);
+  const std::size_t  budget = std::size_t(bpv * double(grid.NumberOfVoxels()) / 8.0) - 90;
+  const BudgetResult r = ApproximateToBudget(engine, budget, p.quantizationOrigin, q);
+  EXPECT_LE(r.payload.size(), budget) << bpv;
+  EXPECT_GE(double(r.payload.size()), 0.97 * double(budget)) << bpv;
+  EXPECT_LE(r.adjustments, 6u);
+  const Approximation final = engine.GetApproximation();
+  EXPECT_EQ(EncodePayload(final, p.quantizationOrigin, q), r.payload);
+  const Approximation decoded =
+    DecodePayload(r.payload, grid, uint32_t(final.points.size()), p.quantizationOrigin, q, "budget");
+  std::vector<float> a(grid.NumberOfVoxels()), b(grid.NumberOfVoxels());
+  Rasterize(final, a.data());
+  Rasterize(decoded, b.data());
+  EXPECT_EQ(a, b);
+}
+
+TEST(Codec, RateControlFillsTheBudgetOnThePhantom)
+{
+  const GridSize           grid{ 48, 44, 40 };
+  const auto               bytes = SheppLoganPhantom(grid);
+  const std::vector<float> image(bytes.begin(), bytes.end());
+  for (double bpv : { 0.0625, 0.25 })
+  {
+    ExpectBudgetMet(image, grid, 255.0, 4.0, bpv);
+  }
+}
+
+TEST(Codec, RateControlFillsTheBudgetOnRealData)
+{
+  DCV_REQUIRE_DATA("headsq-ct.nrrd");
+  const test::Volume v = test::ReadVolume("headsq-ct.nrrd"); // int16
+  for (double bpv : { 0.03125, 0.125 })
+  {
+    ExpectBudgetMet(v.voxels, v.grid, v.peak, std::round(v.peak / 64.0), bpv);
+  }
+}
+
+TEST(Codec, RateControlRefusesABudgetTheCornersExceed)
+{
+  const GridSize           grid{ 20, 20, 20 };
+  const auto               bytes = SheppLoganPhantom(grid);
+  const std::vector<float> image(bytes.begin(), bytes.end());
+  RefinementParameters     p;
+  p.quantizationStep = 4.0;
+  RefinementEngine engine(image.data(), grid, p);
+  EXPECT_THROW(ApproximateToBudget(engine, 2, 0.0, 4.0), std::length_error);
+}
+
 } // namespace

@@ -263,6 +263,28 @@ TEST(RefinementEngine, DecimationLeavesTheScheduledNumberOfPoints)
   EXPECT_NEAR(scheduled.GetSquaredError(), sse, 1e-3 * sse);
 }
 
+TEST(RefinementEngine, ResizeReachesTheCountBothWays)
+{
+  const GridSize           grid{ 32, 30, 28 };
+  const std::vector<float> image = PhantomVolume(grid);
+  RefinementParameters     p = ParametersForMode(Mode::Best);
+  RefinementEngine         engine(image.data(), grid, p);
+  engine.Approximate(600);
+  const double atSix = engine.GetSquaredError();
+  engine.Resize(450); // decimation, then least squares again
+  EXPECT_EQ(engine.GetNumberOfPoints(), 450u);
+  EXPECT_GT(engine.GetSquaredError(), atSix);
+  engine.Resize(700); // refinement
+  EXPECT_EQ(engine.GetNumberOfPoints(), 700u);
+  engine.Resize(3); // never below the corners
+  EXPECT_EQ(engine.GetNumberOfPoints(), 8u);
+  // Accounting stays exact.
+  std::vector<float> out(grid.NumberOfVoxels());
+  Rasterize(engine.GetApproximation(), out.data());
+  const double sse = SquaredError(image.data(), out.data(), grid.NumberOfVoxels());
+  EXPECT_NEAR(engine.GetSquaredError(), sse, 1e-6 * sse);
+}
+
 TEST(RefinementEngine, EstimatedRemovalCostOfAJustInsertedVertexIsExact)
 {
   const GridSize           grid{ 30, 28, 26 };

@@ -77,7 +77,7 @@ ReadVolume(const std::string & name)
   v.voxels.assign(image->GetBufferPointer(), image->GetBufferPointer() + v.grid.NumberOfVoxels());
   const auto range = std::minmax_element(v.voxels.begin(), v.voxels.end());
   const bool eightBit = reader->GetImageIO()->GetComponentSize() == 1;
-  v.peak = eightBit ? 255.0 : double(*range.second - *range.first);
+  v.peak = PSNRPeak(*range.first, *range.second, eightBit);
   return v;
 }
 

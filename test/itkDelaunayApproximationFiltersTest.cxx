@@ -79,6 +79,9 @@ TEST(DelaunayApproximationImageToMeshFilter, SetGetAndPrintSelf)
   EXPECT_EQ(filter->GetDomainSigma(), 1.0);
   EXPECT_EQ(filter->GetRangeSigma(), 0.0); // automatic
   EXPECT_EQ(filter->GetAlpha(), 0.9);
+  EXPECT_EQ(filter->GetBitsPerVoxel(), 0.0); // off
+  filter->SetBitsPerVoxel(0.125);
+  EXPECT_EQ(filter->GetBitsPerVoxel(), 0.125);
   filter->SetAlpha(0.8);
   EXPECT_EQ(filter->GetAlpha(), 0.8);
   std::ostringstream os;
@@ -87,12 +90,13 @@ TEST(DelaunayApproximationImageToMeshFilter, SetGetAndPrintSelf)
   EXPECT_NE(os.str().find("MeanSquaredError: 0"), std::string::npos);
   EXPECT_NE(os.str().find("Mode: dec+com"), std::string::npos);
   EXPECT_NE(os.str().find("Alpha: 0.8"), std::string::npos);
+  EXPECT_NE(os.str().find("BitsPerVoxel: 0.125"), std::string::npos);
 }
 
 TEST(DelaunayApproximationImageToMeshFilter, RefusesBadParameters)
 {
   auto image = MakePhantomImage(dcv::GridSize{ 12, 12, 12 });
-  for (int which = 0; which < 3; ++which)
+  for (int which = 0; which < 4; ++which)
   {
     auto approximate = ApproximationFilter::New();
     approximate->SetInput(image);
@@ -103,6 +107,8 @@ TEST(DelaunayApproximationImageToMeshFilter, RefusesBadParameters)
       approximate->SetDomainSigma(-1.0);
     if (which == 2)
       approximate->SetRangeSigma(-1.0);
+    if (which == 3)
+      approximate->SetBitsPerVoxel(0.1); // without a quantization step
     try
     {
       approximate->Update();
@@ -111,7 +117,8 @@ TEST(DelaunayApproximationImageToMeshFilter, RefusesBadParameters)
     catch (const itk::ExceptionObject & e)
     {
       EXPECT_NE(std::string(e.GetDescription()).find("must be positive"), std::string::npos) << e.GetDescription();
-      EXPECT_NE(std::string(e.GetDescription()).find(which == 0 ? "Alpha" : "Sigma"), std::string::npos);
+      EXPECT_NE(std::string(e.GetDescription()).find(which == 0 ? "Alpha" : which == 3 ? "QuantizationStep" : "Sigma"),
+                std::string::npos);
     }
   }
 }
