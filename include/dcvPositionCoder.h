@@ -34,7 +34,7 @@
  * that are empty or full. k is coded with adaptive binary decisions: a box holding more than half
  * of its voxels codes its empty voxels instead; for few points, the distance of k from the nearer
  * extreme (0 or n) in unary and the side, with contexts keyed by n and the density; for many points,
- * the deviation of k from n V1 / V with adaptive Exp-Golomb codes keyed by log2(n) / 2. The
+ * the deviation of k from n V1 / V with adaptive Exp-Golomb codes keyed by half the bit length of n. The
  * models of few points start from the distribution of a uniformly random set and adapt to the
  * clustering of real sets (measured: 1.004 to 1.03 times log2 C(N, n) on random sets, 0.70 to
  * 0.99 times on refinement point sets of real volumes).
