@@ -202,6 +202,9 @@ public:
   const GridSize &
   GetGrid() const;
 
+  const RefinementParameters &
+  GetParameters() const;
+
 private:
   struct Impl;
   std::unique_ptr<Impl> m_Impl;

@@ -10,6 +10,7 @@ packages=(
   zlib1g-dev              # crc32 of the .dcv files
   libcli11-dev            # dcv's arguments
   libgtest-dev            # tests
+  python3                 # the reference decoder of docs/format.md (dcvFormatSpecificationTest)
 )
 
 missing=()

@@ -818,6 +818,12 @@ RefinementEngine::GetGrid() const
   return m_Impl->grid;
 }
 
+const RefinementParameters &
+RefinementEngine::GetParameters() const
+{
+  return m_Impl->parameters;
+}
+
 Approximation
 RefinementEngine::GetApproximation() const
 {

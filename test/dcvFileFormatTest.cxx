@@ -215,12 +215,17 @@ TEST(Codec, PayloadDecodesToTheEngineOutputBitForBit)
   EXPECT_THROW(EncodePayload(off, 0.0, 4.0), std::invalid_argument);
 }
 
-/** ApproximateToBudget on a volume: the payload fits `fraction` bits per voxel (less the header),
+/** ApproximateToBudget on a volume: the payload fits `bpv` bits per voxel (less the header),
  * fills at least 97% of it, and is the engine's final approximation, decoded bit for bit. */
 void
-ExpectBudgetMet(const std::vector<float> & image, const GridSize & grid, double peak, double q, double bpv)
+ExpectBudgetMet(const std::vector<float> & image,
+                const GridSize &           grid,
+                double                     peak,
+                double                     q,
+                double                     bpv,
+                Mode                       mode = Mode::Best)
 {
-  RefinementParameters p = ParametersForMode(Mode::Best);
+  RefinementParameters p = ParametersForMode(mode);
   const auto           range = std::minmax_element(image.begin(), image.end());
   p.quantizationStep = q;
   p.quantizationOrigin = *range.first;
@@ -251,6 +256,7 @@ TEST(Codec, RateControlFillsTheBudgetOnThePhantom)
   for (double bpv : { 0.0625, 0.25 })
   {
     ExpectBudgetMet(image, grid, 255.0, 4.0, bpv);
+    ExpectBudgetMet(image, grid, 255.0, 4.0, bpv, Mode::Silva); // grows by refinement only
   }
 }
 

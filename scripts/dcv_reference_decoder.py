@@ -1,0 +1,487 @@
+#!/usr/bin/env python3
+# =========================================================================
+#
+#  Copyright NumFOCUS
+#
+#  Licensed under the Apache License, Version 2.0 (the "License");
+#  you may not use this file except in compliance with the License.
+#  You may obtain a copy of the License at
+#
+#         http://www.apache.org/licenses/LICENSE-2.0.txt
+#
+#  Unless required by applicable law or agreed to in writing, software
+#  distributed under the License is distributed on an "AS IS" BASIS,
+#  WITHOUT WARRANTIES OR CONDITIONS OF ANY KIND, either express or implied.
+#  See the License for the specific language governing permissions and
+#  limitations under the License.
+#
+# =========================================================================
+"""Reference decoder of .dcv files, written from docs/format.md alone (Python 3, standard library only).
+
+It exists so that the document and the C++ code cannot drift apart: the test
+dcvFormatSpecificationTest runs it on files the C++ encoder makes and compares its output with what the
+C++ decoder gives. Each part below implements one section of docs/format.md, in the document's order, and
+says which; where this script and the C++ sources disagree, the document decides.
+
+Usage:
+    dcv_reference_decoder.py FILE.dcv [--neighbours NEIGHBOURS.txt]
+
+Prints the header fields, one per line ("name value ..."; floats as Python's repr, which reads back
+exactly; one "metadata KEY VALUE" line per pair, both as JSON strings), then one line "x y z" per point in
+decoding order.
+
+Values: a value depends on the vertex's Delaunay neighbours under CGAL's symbolic perturbation
+(section "Tetrahedralization"), which a standard-library script cannot build efficiently. So this script
+decodes the container and the positions on its own, and decodes the values only when it is given the
+neighbour relation with --neighbours: a text file with one line per vertex, in position order, listing the
+indices of that vertex's neighbours (separated by white space, any order). The point lines are then
+"x y z value". Without it, the values part of the payload is not read (so a stream truncated inside the
+values is only detected with --neighbours).
+
+Exit status: 0 on success; 1, with a message "FILE: problem" on stderr, when the file is damaged or
+truncated (CRC-32 mismatch, a field out of range, a stream overrun, ...); 2 on a usage error.
+"""
+
+import argparse
+import json
+import math
+import struct
+import sys
+import zlib
+
+
+class DamagedFile(Exception):
+    """The file breaks a rule of docs/format.md (the message says which)."""
+
+
+# =========================================================================
+# Container (section "Container")
+# =========================================================================
+
+MAGIC = b"\x89DCV"
+VERSION = 1
+PIXEL_TYPES = {1: "uint8", 2: "int8", 3: "uint16", 4: "int16", 5: "uint32", 6: "int32", 7: "float32", 8: "float64"}
+MODES = {0: "silva", 1: "dec", 2: "dec+com", 3: "best"}
+FLAG_DIRECTION = 1
+FLAG_METADATA = 2
+IDENTITY = (1.0, 0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 1.0)
+
+
+class _Fields:
+    """Little-endian fields read in order from data[position:end]; refuses to read past end."""
+
+    def __init__(self, data, position, end):
+        self.data, self.position, self.end = data, position, end
+
+    def take(self, count, what):
+        if self.end - self.position < count:
+            raise DamagedFile("truncated (the file ends inside the %s)" % what)
+        chunk = self.data[self.position:self.position + count]
+        self.position += count
+        return chunk
+
+    def unpack(self, fmt, what):
+        return struct.unpack("<" + fmt, self.take(struct.calcsize("<" + fmt), what))
+
+    def left(self):
+        return self.end - self.position
+
+
+def parse_container(data):
+    """Checks, in the document's order, magic, version, CRC-32, then every field's range; returns a dict."""
+    if len(data) < 4 or data[:4] != MAGIC:
+        raise DamagedFile("not a .dcv file (wrong magic bytes)")
+    if len(data) < 5:
+        raise DamagedFile("truncated (the file ends inside the header)")
+    if data[4] != VERSION:
+        raise DamagedFile(".dcv version %d is not supported (this reader knows %d)" % (data[4], VERSION))
+    if len(data) < 9:
+        raise DamagedFile("truncated (the file ends inside the header)")
+    # CRC-32 (zlib's crc32) of every byte before the last 4: checked before any other number is used.
+    body = len(data) - 4
+    (stored,) = struct.unpack_from("<I", data, body)
+    if zlib.crc32(data[:body]) & 0xFFFFFFFF != stored:
+        raise DamagedFile("damaged or truncated (CRC-32 mismatch)")
+
+    f = _Fields(data, 5, body)
+    pixel_type, flags, mode = f.unpack("3B", "header")
+    if pixel_type not in PIXEL_TYPES:
+        raise DamagedFile("unknown pixel type code %d" % pixel_type)
+    if flags & ~(FLAG_DIRECTION | FLAG_METADATA):
+        raise DamagedFile("unknown header flags %d" % flags)
+    size = f.unpack("3H", "header")
+    if min(size) < 2:
+        raise DamagedFile("absurd volume size %dx%dx%d (each axis needs at least 2 voxels)" % size)
+    spacing = f.unpack("3d", "header")
+    origin = f.unpack("3d", "header")
+    direction = f.unpack("9d", "header") if flags & FLAG_DIRECTION else IDENTITY
+    if not all(math.isfinite(s) and s > 0.0 for s in spacing):
+        raise DamagedFile("invalid voxel spacing")
+    q0, q = f.unpack("2d", "header")
+    if not (math.isfinite(q0) and math.isfinite(q) and q > 0.0):
+        raise DamagedFile("invalid value quantization")
+    voxels = size[0] * size[1] * size[2]
+    n, length = f.unpack("2I", "header")
+    if not 8 <= n <= voxels:
+        raise DamagedFile("absurd point count %d for %d voxels" % (n, voxels))
+    if length > f.left():
+        raise DamagedFile("truncated (the payload is %d bytes, %d remain)" % (length, f.left()))
+    payload = f.take(length, "payload")
+
+    metadata = []
+    if flags & FLAG_METADATA:
+        count, block_size = f.unpack("2I", "metadata")
+        if block_size != f.left():
+            raise DamagedFile("inconsistent metadata block")
+        for _ in range(count):
+            pair = []
+            for _ in range(2):
+                (text_length,) = f.unpack("I", "metadata")
+                # UTF-8 by the document; shown with replacement characters if not (it is not checked).
+                pair.append(f.take(text_length, "metadata").decode("utf-8", errors="replace"))
+            metadata.append(tuple(pair))
+    if f.left() != 0:
+        raise DamagedFile("%d unexpected bytes before the checksum" % f.left())
+
+    return dict(version=VERSION, pixel_type=pixel_type, flags=flags, mode=mode, size=size, spacing=spacing,
+                origin=origin, direction=direction, q0=q0, q=q, n=n, payload=payload, metadata=metadata)
+
+
+# =========================================================================
+# Payload: arithmetic decoder (section "Arithmetic decoder")
+# =========================================================================
+
+class ArithmeticDecoder:
+    """LZMA-style range decoder over the payload; past its end it reads zeros and notes the overrun."""
+
+    def __init__(self, payload):
+        self.payload, self.position, self.overrun = payload, 0, False
+        self.range = 0xFFFFFFFF
+        self.code = 0
+        for _ in range(4):  # the first 4 bytes, big-endian
+            self.code = ((self.code << 8) | self.next_byte()) & 0xFFFFFFFF
+
+    def next_byte(self):
+        if self.position < len(self.payload):
+            byte = self.payload[self.position]
+            self.position += 1
+            return byte
+        self.overrun = True
+        return 0
+
+    def renormalize(self):
+        while self.range < (1 << 24):
+            self.range = (self.range << 8) & 0xFFFFFFFF
+            self.code = ((self.code << 8) | self.next_byte()) & 0xFFFFFFFF
+
+    def decode_bit(self, model):
+        bound = (self.range * model.p) >> 16
+        if self.code < bound:
+            self.range = bound
+            bit = 0
+        else:
+            self.code -= bound
+            self.range -= bound
+            bit = 1
+        model.update(bit)
+        self.renormalize()
+        return bit
+
+    def decode_equiprobable(self, bits):
+        v = 0
+        for _ in range(bits):  # the most significant bit first
+            self.range >>= 1
+            if self.code >= self.range:
+                self.code -= self.range
+                v = 2 * v + 1
+            else:
+                v = 2 * v
+            self.renormalize()
+        return v
+
+
+# =========================================================================
+# Adaptive bit model (section "Adaptive bit model")
+# =========================================================================
+
+# T[count]: the adaptation shift before the cap S, round(log2(count + 2)).
+SHIFT = [1] + [2] * 3 + [3] * 6 + [4] * 11 + [5] * 23 + [6] * 45 + [7] * 39
+assert len(SHIFT) == 128
+
+
+class BitModel:
+    """p = P(bit = 0) * 2^16; fresh: p = 32768, count = 0; with a prior: the given p, count = 16."""
+
+    __slots__ = ("p", "count", "max_shift")
+
+    def __init__(self, max_shift, prior=None):
+        self.max_shift = max_shift
+        self.p, self.count = (32768, 0) if prior is None else (prior, 16)
+
+    def update(self, bit):
+        s = min(SHIFT[self.count], self.max_shift)
+        if self.count < 127:
+            self.count += 1
+        if bit == 1:
+            self.p -= self.p >> s
+        else:
+            self.p += (65536 - self.p) >> s
+
+
+# =========================================================================
+# Integers (section "Integers")
+# =========================================================================
+
+class UIntModel:
+    """Exp-Golomb binarization of v + 1: prefix[0..31], mantissa[e][1..3] (index 0 unused)."""
+
+    def __init__(self, max_shift):
+        self.prefix = [BitModel(max_shift) for _ in range(32)]
+        self.mantissa = [[BitModel(max_shift) for _ in range(4)] for _ in range(33)]
+
+    def decode(self, d):
+        e = 0
+        while e < 32 and d.decode_bit(self.prefix[e]) == 1:
+            e += 1
+        if e == 32:
+            return 2 ** 32 - 1
+        w, node = 1, 1
+        for t in range(e):
+            if t < 2:
+                b = d.decode_bit(self.mantissa[e][node])
+                node = 2 * node + b
+                w = 2 * w + b
+            else:
+                w = (w << (e - t)) | d.decode_equiprobable(e - t)
+                break
+        return w - 1
+
+
+class SIntModel:
+    """zero, sign and a UInt magnitude; returns a 32-bit two's-complement integer."""
+
+    def __init__(self, max_shift):
+        self.zero, self.sign = BitModel(max_shift), BitModel(max_shift)
+        self.magnitude = UIntModel(max_shift)
+
+    def decode(self, d):
+        if d.decode_bit(self.zero) == 1:
+            return 0
+        negative = d.decode_bit(self.sign)
+        m = (self.magnitude.decode(d) + 1) % 2 ** 32
+        u = (2 ** 32 - m) % 2 ** 32 if negative else m
+        return u - 2 ** 32 if u >= 2 ** 31 else u
+
+
+# =========================================================================
+# Positions (section "Positions")
+# =========================================================================
+
+# U(n, i) for n = 1..16, i = 0..floor(n/2)-1: the priors of unary[n][d][i].
+UNARY_PRIORS = {
+    1: [], 2: [32768], 3: [49152], 4: [57344, 28087], 5: [61440, 43691], 6: [63488, 52852, 26214],
+    7: [64512, 58254, 40960], 8: [65024, 61408, 50116, 25206], 9: [65280, 63223, 55945, 39322],
+    10: [65408, 64253, 59650, 48290, 24576], 11: [65472, 64831, 61974, 54237, 38229],
+    12: [65504, 65152, 63411, 58214, 46988, 24145], 13: [65520, 65328, 64284, 60855, 52933, 37449],
+    14: [65528, 65424, 64807, 62586, 57041, 46015, 23831], 15: [65532, 65476, 65116, 63702, 59877, 51910, 36864],
+    16: [65534, 65504, 65296, 64411, 61817, 56073, 45260, 23593],
+}
+# Priors of side[0][c] for c = 1..7.
+SIDE_PRIORS = [65535, 43691, 39322, 37449, 36409, 35747, 35289]
+
+
+class PositionModels:
+    """The models of the positions, created once for the whole payload, all with maximum shift 7."""
+
+    def __init__(self):
+        self.unary = {n: [[BitModel(7, UNARY_PRIORS[n][i]) for i in range(n // 2)] for _ in range(24)]
+                      for n in range(1, 17)}
+        self.side = [[BitModel(7) for _ in range(9)] for _ in range(3)]
+        for c in range(1, 8):
+            self.side[0][c] = BitModel(7, SIDE_PRIORS[c - 1])
+        self.zero = [BitModel(7) for _ in range(34)]
+        self.sign = [BitModel(7) for _ in range(34)]
+        self.magnitude = [UIntModel(7) for _ in range(34)]
+
+
+def decode_positions(d, size, n):
+    """The n points (x, y, z) of the kd-tree of the grid box, in decoding order."""
+    models = PositionModels()
+    points = []
+
+    def decode_small(n, V, L, lo, hi):
+        def feasible(v):
+            return lo <= v <= hi
+        density = min((V // n).bit_length() - 1, 23)
+        candidates = [i for i in range(n // 2 + 1) if feasible(i) or feasible(n - i)]
+        m = candidates[-1]
+        for i in candidates[:-1]:
+            if d.decode_bit(models.unary[n][density][i]) == 1:
+                m = i
+                break
+        if 2 * m == n:
+            return m
+        if feasible(m) and feasible(n - m):
+            c = min((L + 1) // 2, 8) if L % 2 == 1 else 0
+            r = 0 if n == 1 else (1 if m == 0 else 2)
+            upper = d.decode_bit(models.side[r][c])
+        else:
+            upper = 0 if feasible(m) else 1
+        return n - m if upper == 1 else m
+
+    def decode_large(n, L, lo, hi):
+        x = min(max((n * (L // 2) + L // 2) // L, lo), hi)
+        c = min(n.bit_length() // 2, 33)
+        if d.decode_bit(models.zero[c]) == 1:
+            return x
+        negative = d.decode_bit(models.sign[c])
+        magnitude = models.magnitude[c].decode(d) + 1
+        step = min(magnitude, x - lo if negative else hi - x)
+        return x - step if negative else x + step
+
+    def decode_split(n, V, V1, L):
+        V2 = V - V1
+        complement = 2 * n > V
+        if complement:
+            n = V - n
+        lo, hi = max(0, n - V2), min(n, V1)
+        k = decode_small(n, V, L, lo, hi) if n <= 16 else decode_large(n, L, lo, hi)
+        return V1 - k if complement else k
+
+    def decode_box(lo, hi, n):
+        extent = [hi[a] - lo[a] for a in range(3)]
+        V = extent[0] * extent[1] * extent[2]
+        if n == 0:
+            return
+        if n == V:
+            for z in range(lo[2], hi[2]):
+                for y in range(lo[1], hi[1]):
+                    for x in range(lo[0], hi[0]):
+                        points.append((x, y, z))
+            return
+        a = extent.index(max(extent))  # the first of x, y, z on ties
+        L = extent[a]
+        mid = lo[a] + L // 2
+        V1 = (V // L) * (L // 2)
+        k = decode_split(n, V, V1, L)
+        first_hi = list(hi)
+        first_hi[a] = mid
+        second_lo = list(lo)
+        second_lo[a] = mid
+        decode_box(lo, first_hi, k)  # depth first (the recursion is at most ~48 deep)
+        decode_box(second_lo, hi, n - k)
+
+    decode_box([0, 0, 0], list(size), n)
+    return points
+
+
+def check_positions(d, size, points):
+    """The checks after the positions: the 8 corners of the grid are there, the stream is not overrun."""
+    sx, sy, sz = size
+    present = set(points)
+    for corner in [(x, y, z) for z in (0, sz - 1) for y in (0, sy - 1) for x in (0, sx - 1)]:
+        if corner not in present:
+            raise DamagedFile("damaged point positions (the corner %d %d %d is missing)" % corner)
+    if d.overrun:
+        raise DamagedFile("the payload ends inside the point positions")
+
+
+# =========================================================================
+# Values (section "Values"; the neighbours of section "Tetrahedralization" are given)
+# =========================================================================
+
+def decode_values(d, neighbours, q0, q):
+    """The values q0 + k q of the vertices 0 .. n-1, given each vertex's neighbour indices."""
+    residual = [SIntModel(5) for _ in range(4)]
+    k = []
+    values = []
+    for i, around in enumerate(neighbours):
+        known = [j for j in around if j < i]
+        if not known:
+            prediction = k[i - 1] if i > 0 else 0
+        else:
+            s, c = sum(k[j] for j in known), len(known)
+            prediction = (2 * s + c) // (2 * c)  # floor: the mean rounded half up
+        context = 0 if not known else 1 if len(known) <= 2 else 2 if len(known) <= 5 else 3
+        ki = prediction + residual[context].decode(d)
+        if abs(ki) >= 2 ** 31:
+            raise DamagedFile("damaged values")
+        k.append(ki)
+        values.append(q0 + float(ki) * q)  # IEEE double: the product, then the sum
+    if d.overrun:
+        raise DamagedFile("the payload ends inside the values")
+    return values
+
+
+def read_neighbours(path, n):
+    """One line per vertex, in position order: the indices of its neighbours."""
+    with open(path, encoding="ascii") as f:
+        lines = f.read().splitlines()
+    if len(lines) != n:
+        raise ValueError("%d lines for %d points" % (len(lines), n))
+    neighbours = [[int(token) for token in line.split()] for line in lines]
+    for i, around in enumerate(neighbours):
+        if any(not 0 <= j < n or j == i for j in around):
+            raise ValueError("line %d lists an invalid neighbour index" % (i + 1))
+    return neighbours
+
+
+# =========================================================================
+# Command line
+# =========================================================================
+
+def print_header(h):
+    print("version", h["version"])
+    print("pixel_type", h["pixel_type"], PIXEL_TYPES[h["pixel_type"]])
+    print("flags", h["flags"])
+    print("mode", h["mode"], MODES.get(h["mode"], "unknown"))
+    print("size", *h["size"])
+    print("spacing", *map(repr, h["spacing"]))
+    print("origin", *map(repr, h["origin"]))
+    print("direction", *map(repr, h["direction"]))
+    print("quantization_origin", repr(h["q0"]))
+    print("quantization_step", repr(h["q"]))
+    print("points", h["n"])
+    print("payload_bytes", len(h["payload"]))
+    for key, value in h["metadata"]:
+        print("metadata", json.dumps(key, ensure_ascii=False), json.dumps(value, ensure_ascii=False))
+
+
+def main():
+    parser = argparse.ArgumentParser(description="Reference decoder of .dcv files (docs/format.md).")
+    parser.add_argument("file", metavar="FILE.dcv")
+    parser.add_argument("--neighbours", metavar="FILE",
+                        help="neighbour lists (one line per vertex, in position order): decode the values too")
+    args = parser.parse_args()
+    try:
+        with open(args.file, "rb") as f:
+            data = f.read()
+    except OSError as e:
+        print("%s: cannot be read (%s)" % (args.file, e.strerror), file=sys.stderr)
+        return 2
+    try:
+        h = parse_container(data)
+        d = ArithmeticDecoder(h["payload"])
+        points = decode_positions(d, h["size"], h["n"])
+        check_positions(d, h["size"], points)
+        values = None
+        if args.neighbours:
+            try:
+                neighbours = read_neighbours(args.neighbours, h["n"])
+            except (OSError, ValueError) as e:
+                print("%s: %s" % (args.neighbours, e.strerror if isinstance(e, OSError) else e), file=sys.stderr)
+                return 2
+            values = decode_values(d, neighbours, h["q0"], h["q"])
+    except DamagedFile as e:
+        print("%s: %s" % (args.file, e), file=sys.stderr)
+        return 1
+    print_header(h)
+    if values is None:
+        sys.stdout.writelines("%d %d %d\n" % p for p in points)
+    else:
+        sys.stdout.writelines("%d %d %d %r\n" % (p[0], p[1], p[2], v) for p, v in zip(points, values))
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

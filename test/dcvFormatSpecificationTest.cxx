@@ -1,0 +1,462 @@
+/*=========================================================================
+ *
+ *  Copyright NumFOCUS
+ *
+ *  Licensed under the Apache License, Version 2.0 (the "License");
+ *  you may not use this file except in compliance with the License.
+ *  You may obtain a copy of the License at
+ *
+ *         http://www.apache.org/licenses/LICENSE-2.0.txt
+ *
+ *  Unless required by applicable law or agreed to in writing, software
+ *  distributed under the License is distributed on an "AS IS" BASIS,
+ *  WITHOUT WARRANTIES OR CONDITIONS OF ANY KIND, either express or implied.
+ *  See the License for the specific language governing permissions and
+ *  limitations under the License.
+ *
+ *=========================================================================*/
+// docs/format.md against the code: scripts/dcv_reference_decoder.py, a decoder written from the document
+// alone, must read every file the C++ encoder writes into exactly what the C++ decoder gives (header fields,
+// points in decoding order, values given the neighbours), and refuse the damaged ones.
+#include "dcvCodec.h"
+#include "dcvFileFormat.h"
+#include "dcvPhantom.h"
+#include "dcvRefinementEngine.h"
+#include "dcvTestUtilities.h"
+
+#include <cstdio>
+#include <cstdlib>
+#include <fstream>
+#include <map>
+#include <random>
+#include <set>
+#include <sstream>
+#include <sys/wait.h>
+#include <unistd.h>
+
+namespace
+{
+namespace fs = std::filesystem;
+using namespace dcv;
+
+struct Result
+{
+  int         status;
+  std::string output; // stdout
+  std::string errors; // stderr
+};
+
+std::string
+Quote(const std::string & s)
+{
+  std::string q = "'";
+  for (char c : s)
+    q += (c == '\'') ? std::string("'\\''") : std::string(1, c);
+  return q + "'";
+}
+
+/** A string as Python's json.dumps(s, ensure_ascii=False) writes it. */
+std::string
+Json(const std::string & s)
+{
+  std::string out = "\"";
+  for (unsigned char c : s)
+  {
+    switch (c)
+    {
+      case '"':
+        out += "\\\"";
+        break;
+      case '\\':
+        out += "\\\\";
+        break;
+      case '\n':
+        out += "\\n";
+        break;
+      case '\r':
+        out += "\\r";
+        break;
+      case '\t':
+        out += "\\t";
+        break;
+      case '\b':
+        out += "\\b";
+        break;
+      case '\f':
+        out += "\\f";
+        break;
+      default:
+        if (c < 0x20)
+        {
+          char buffer[8];
+          std::snprintf(buffer, sizeof(buffer), "\\u%04x", c);
+          out += buffer;
+        }
+        else
+        {
+          out += char(c);
+        }
+    }
+  }
+  return out + "\"";
+}
+
+/** What the C++ reader makes of a file: ParseFile, then DecodePayload. */
+struct Decoded
+{
+  std::vector<uint8_t> bytes;
+  FileHeader           header;
+  std::vector<uint8_t> payload;
+  Approximation        approximation;
+};
+
+Decoded
+DecodeWithTheLibrary(const std::string & path)
+{
+  Decoded d;
+  d.bytes = ReadWholeFile(path);
+  ParseFile(d.bytes, path, d.header, d.payload);
+  const FileHeader & h = d.header;
+  d.approximation =
+    DecodePayload(d.payload, h.size, h.numberOfPoints, h.quantizationOrigin, h.quantizationStep, path);
+  return d;
+}
+
+/** The reference decoder's output, split into header fields and point lines. */
+struct Reference
+{
+  std::map<std::string, std::vector<std::string>> fields; // name -> tokens
+  std::vector<std::string>                        metadata; // the text after "metadata ", per pair
+  std::vector<std::vector<std::string>>           points;   // tokens per point line
+};
+
+Reference
+ParseReference(const std::string & output)
+{
+  Reference          r;
+  std::istringstream lines(output);
+  std::string        line;
+  while (std::getline(lines, line))
+  {
+    std::istringstream       tokens(line);
+    std::vector<std::string> t;
+    for (std::string s; tokens >> s;)
+      t.push_back(s);
+    if (t.empty())
+      continue;
+    if (t[0] == "metadata")
+      r.metadata.push_back(line.substr(9));
+    else if (std::isalpha(static_cast<unsigned char>(t[0][0])))
+      r.fields[t[0]] = std::vector<std::string>(t.begin() + 1, t.end());
+    else
+      r.points.push_back(t);
+  }
+  return r;
+}
+
+double
+ToDouble(const std::string & s)
+{
+  char *       end = nullptr;
+  const double v = std::strtod(s.c_str(), &end);
+  EXPECT_TRUE(end && *end == '\0' && !s.empty()) << "not a number: '" << s << "'";
+  return v;
+}
+
+class FormatSpecification : public ::testing::Test
+{
+protected:
+  void
+  SetUp() override
+  {
+    if (std::string(DCV_PYTHON3).empty() || !fs::exists(DCV_PYTHON3))
+    {
+      GTEST_SKIP() << "python3 was not found (CMake find_program: '" << DCV_PYTHON3
+                   << "'): cannot run the reference decoder " << DCV_REFERENCE_DECODER
+                   << "; install python3 (scripts/setup.sh) and reconfigure";
+    }
+    m_Directory = fs::temp_directory_path() /
+                  ("dcv-spec-" + std::to_string(::getpid()) + "-" +
+                   ::testing::UnitTest::GetInstance()->current_test_info()->name());
+    fs::remove_all(m_Directory);
+    fs::create_directories(m_Directory);
+  }
+  void
+  TearDown() override
+  {
+    if (!m_Directory.empty())
+      fs::remove_all(m_Directory);
+  }
+  std::string
+  Path(const std::string & name) const
+  {
+    return (m_Directory / name).string();
+  }
+
+  /** python3 dcv_reference_decoder.py FILE [--neighbours NEIGHBOURS]. */
+  Result
+  RunReference(const std::string & file, const std::string & neighbours = "") const
+  {
+    const std::string errors = Path("stderr.txt");
+    std::string       command = Quote(DCV_PYTHON3) + " " + Quote(DCV_REFERENCE_DECODER) + " " + Quote(file);
+    if (!neighbours.empty())
+      command += " --neighbours " + Quote(neighbours);
+    command += " 2>" + Quote(errors);
+    Result r{ -1, "", "" };
+    FILE * pipe = ::popen(command.c_str(), "r");
+    if (!pipe)
+      return r;
+    char buffer[65536];
+    while (std::size_t n = std::fread(buffer, 1, sizeof(buffer), pipe))
+      r.output.append(buffer, n);
+    const int status = ::pclose(pipe);
+    r.status = WIFEXITED(status) ? WEXITSTATUS(status) : 128 + WTERMSIG(status);
+    std::ifstream in(errors);
+    r.errors.assign(std::istreambuf_iterator<char>(in), std::istreambuf_iterator<char>());
+    return r;
+  }
+
+  /** The neighbour lists of the Delaunay tetrahedralization of the points, one line per vertex. */
+  std::string
+  WriteNeighbours(const std::vector<GridPoint> & points, const std::string & name) const
+  {
+    std::vector<std::set<uint32_t>> around(points.size());
+    for (const Tetrahedron & t : Tetrahedralize(points))
+      for (int i = 0; i < 4; ++i)
+        for (int j = 0; j < 4; ++j)
+          if (i != j)
+            around[t[i]].insert(t[j]);
+    std::ofstream out(Path(name));
+    for (const auto & a : around)
+    {
+      const char * separator = "";
+      for (uint32_t j : a)
+      {
+        out << separator << j;
+        separator = " ";
+      }
+      out << '\n';
+    }
+    return Path(name);
+  }
+
+  /** Codes `a` (values on q0 + k q) into a file with header `h`. */
+  std::string
+  WriteDcv(const std::string & name, FileHeader h, const Approximation & a) const
+  {
+    h.size = a.grid;
+    h.numberOfPoints = uint32_t(a.points.size());
+    WriteFileAtomically(Path(name), SerializeFile(h, EncodePayload(a, h.quantizationOrigin, h.quantizationStep)));
+    return Path(name);
+  }
+
+  /** The reference decoder agrees with the library on `path`: header, points in order, and values. */
+  void
+  ExpectAgreement(const std::string & path, bool alsoWithoutValues = false) const
+  {
+    const Decoded         d = DecodeWithTheLibrary(path);
+    const FileHeader &    h = d.header;
+    const Approximation & a = d.approximation;
+    const std::string     neighbours = WriteNeighbours(a.points, "neighbours.txt");
+    const Result          run = RunReference(path, neighbours);
+    ASSERT_EQ(run.status, 0) << run.errors;
+    const Reference r = ParseReference(run.output);
+
+    using Tokens = std::vector<std::string>;
+    auto numbers = [](const Tokens & t) {
+      std::vector<double> v;
+      for (const auto & s : t)
+        v.push_back(ToDouble(s));
+      return v;
+    };
+    auto field = [&r](const std::string & name) {
+      const auto it = r.fields.find(name);
+      EXPECT_NE(it, r.fields.end()) << "the reference decoder printed no '" << name << "'";
+      return it == r.fields.end() ? Tokens() : it->second;
+    };
+    const bool   direction = h.direction != std::array<double, 9>{ 1, 0, 0, 0, 1, 0, 0, 0, 1 };
+    const int    flags = (direction ? 1 : 0) | (h.metadata.empty() ? 0 : 2);
+    const Tokens type = field("pixel_type");
+    const Tokens mode = field("mode");
+    EXPECT_EQ(field("version"), Tokens{ std::to_string(FileHeader::Version) });
+    EXPECT_EQ(type.empty() ? "" : type[0], std::to_string(int(h.pixelType)));
+    EXPECT_EQ(field("flags"), Tokens{ std::to_string(flags) });
+    EXPECT_EQ(mode.empty() ? "" : mode[0], std::to_string(int(h.mode)));
+    EXPECT_EQ(field("size"),
+              (Tokens{ std::to_string(h.size.x), std::to_string(h.size.y), std::to_string(h.size.z) }));
+    EXPECT_EQ(numbers(field("spacing")), std::vector<double>(h.spacing.begin(), h.spacing.end()));
+    EXPECT_EQ(numbers(field("origin")), std::vector<double>(h.origin.begin(), h.origin.end()));
+    EXPECT_EQ(numbers(field("direction")), std::vector<double>(h.direction.begin(), h.direction.end()));
+    EXPECT_EQ(numbers(field("quantization_origin")), std::vector<double>{ h.quantizationOrigin });
+    EXPECT_EQ(numbers(field("quantization_step")), std::vector<double>{ h.quantizationStep });
+    EXPECT_EQ(field("points"), Tokens{ std::to_string(h.numberOfPoints) });
+    EXPECT_EQ(field("payload_bytes"), Tokens{ std::to_string(d.payload.size()) });
+    std::vector<std::string> metadata;
+    for (const auto & kv : h.metadata)
+      metadata.push_back(Json(kv.first) + " " + Json(kv.second));
+    EXPECT_EQ(r.metadata, metadata);
+
+    ASSERT_EQ(r.points.size(), a.points.size());
+    for (std::size_t i = 0; i < a.points.size(); ++i)
+    {
+      const Tokens expected{ std::to_string(a.points[i][0]), std::to_string(a.points[i][1]),
+                             std::to_string(a.points[i][2]) };
+      ASSERT_EQ(r.points[i].size(), 4u) << "point " << i;
+      ASSERT_EQ(Tokens(r.points[i].begin(), r.points[i].begin() + 3), expected) << "point " << i << " of " << path;
+      ASSERT_EQ(ToDouble(r.points[i][3]), a.values[i]) << "value of point " << i << " of " << path;
+    }
+
+    if (alsoWithoutValues) // positions only: the same lines without the values
+    {
+      const Result positions = RunReference(path);
+      ASSERT_EQ(positions.status, 0) << positions.errors;
+      const Reference p = ParseReference(positions.output);
+      EXPECT_EQ(p.fields, r.fields);
+      ASSERT_EQ(p.points.size(), r.points.size());
+      for (std::size_t i = 0; i < p.points.size(); ++i)
+        ASSERT_EQ(p.points[i], Tokens(r.points[i].begin(), r.points[i].begin() + 3)) << "point " << i;
+    }
+  }
+
+  fs::path m_Directory;
+};
+
+/** The engine's approximation of the Shepp-Logan phantom with n points, values on k q. */
+Approximation
+Phantom(const GridSize & grid, Mode mode, std::size_t n, double q0, double q)
+{
+  const auto               bytes = SheppLoganPhantom(grid);
+  const std::vector<float> image(bytes.begin(), bytes.end());
+  RefinementParameters     p = ParametersForMode(mode);
+  p.quantizationStep = q;
+  p.quantizationOrigin = q0;
+  p.valueMin = 0.0;
+  p.valueMax = 255.0;
+  RefinementEngine engine(image.data(), grid, p);
+  engine.Approximate(n);
+  return engine.GetApproximation();
+}
+
+TEST_F(FormatSpecification, PhantomEvenGrid)
+{
+  FileHeader h;
+  h.mode = uint8_t(Mode::Dec);
+  h.quantizationStep = 4.0;
+  ExpectAgreement(WriteDcv("even.dcv", h, Phantom(GridSize{ 40, 36, 30 }, Mode::Dec, 700, 0.0, 4.0)), true);
+}
+
+TEST_F(FormatSpecification, PhantomOddGrid)
+{
+  FileHeader h;
+  h.mode = uint8_t(Mode::Silva);
+  h.quantizationStep = 3.0;
+  ExpectAgreement(WriteDcv("odd.dcv", h, Phantom(GridSize{ 33, 27, 19 }, Mode::Silva, 600, 0.0, 3.0)));
+}
+
+TEST_F(FormatSpecification, DirectionAndMetadata)
+{
+  FileHeader h;
+  h.pixelType = PixelType::Float32;
+  h.mode = uint8_t(Mode::Best);
+  h.spacing = { 0.7, 1.3, 2.25 };
+  h.origin = { -12.5, 3.0, 1e-3 };
+  h.direction = { 0.6, -0.8, 0, 0.8, 0.6, 0, 0, 0, -1 };
+  h.quantizationOrigin = -3.5;
+  h.quantizationStep = 0.5;
+  h.metadata = { { "PatientID", "anon-7" },
+                 { "Note", "é ü 中文, \"quoted\" \\ and\ta tab" },
+                 { "", "an empty key" },
+                 { "empty value", "" } };
+  ExpectAgreement(WriteDcv("oriented.dcv", h, Phantom(GridSize{ 24, 30, 21 }, Mode::Best, 300, -3.5, 0.5)));
+}
+
+TEST_F(FormatSpecification, OnlyTheCorners)
+{
+  // A large, flat grid (every split is of a box with 8 points or fewer), then a grid that is all corners.
+  for (const GridSize grid : { GridSize{ 300, 2, 65535 }, GridSize{ 2, 2, 2 } })
+  {
+    Approximation a;
+    a.grid = grid;
+    a.points = test::Corners(grid);
+    for (std::size_t i = 0; i < a.points.size(); ++i)
+      a.values.push_back(10.0 + 2.0 * double((i * 37) % 11) - 7.0 * double(i % 2));
+    FileHeader h;
+    h.pixelType = PixelType::Int16;
+    h.quantizationOrigin = 10.0;
+    h.quantizationStep = 1.0;
+    ExpectAgreement(WriteDcv("corners.dcv", h, a));
+  }
+}
+
+TEST_F(FormatSpecification, DenseRandomPointsWithLargeValues)
+{
+  // More points than half the voxels (the complement coding), values up to the encoder's 2^30 limit.
+  const GridSize grid{ 6, 5, 4 };
+  Approximation  a;
+  a.grid = grid;
+  a.points = test::RandomPoints(grid, 92, 7);
+  std::mt19937                           random(11);
+  std::uniform_int_distribution<int64_t> k(-(int64_t(1) << 30) + 1, (int64_t(1) << 30) - 1);
+  for (std::size_t i = 0; i < a.points.size(); ++i)
+    a.values.push_back(0.5 + 0.25 * double(i % 3 == 0 ? k(random) : k(random) % 100));
+  FileHeader h;
+  h.pixelType = PixelType::Float64;
+  h.quantizationOrigin = 0.5;
+  h.quantizationStep = 0.25;
+  ExpectAgreement(WriteDcv("dense.dcv", h, a));
+}
+
+TEST_F(FormatSpecification, RealVolumeThroughTheCommandLine)
+{
+  DCV_REQUIRE_DATA("headsq-ct.nrrd");
+  const std::string file = Path("headsq.dcv");
+  const std::string command = Quote(DCV_EXECUTABLE) + " compress -q -m silva -n 3000 " +
+                              Quote(test::DataFile("headsq-ct.nrrd")) + " " + Quote(file) + " 2>&1";
+  ASSERT_EQ(std::system(command.c_str()), 0) << command;
+  ExpectAgreement(file);
+}
+
+TEST_F(FormatSpecification, DamagedFilesAreRefused)
+{
+  FileHeader h;
+  h.quantizationStep = 4.0;
+  const std::string good = WriteDcv("good.dcv", h, Phantom(GridSize{ 20, 18, 16 }, Mode::Silva, 200, 0.0, 4.0));
+  const Decoded     d = DecodeWithTheLibrary(good);
+  const std::string neighbours = WriteNeighbours(d.approximation.points, "neighbours.txt");
+  const std::vector<uint8_t> & bytes = d.bytes;
+  const std::vector<uint8_t> & payload = d.payload;
+
+  auto write = [this](const std::string & name, const std::vector<uint8_t> & content) {
+    std::ofstream(Path(name), std::ios::binary).write(reinterpret_cast<const char *>(content.data()),
+                                                      std::streamsize(content.size()));
+    return Path(name);
+  };
+  auto expectRefused = [&](const std::string & file, const std::string & phrase, bool withNeighbours) {
+    const Result r = RunReference(file, withNeighbours ? neighbours : "");
+    EXPECT_EQ(r.status, 1) << file << ": " << r.errors;
+    EXPECT_NE(r.errors.find(file + ": "), std::string::npos) << r.errors;
+    EXPECT_NE(r.errors.find(phrase), std::string::npos) << "expected '" << phrase << "' in: " << r.errors;
+    EXPECT_TRUE(r.output.empty()) << r.output;
+  };
+
+  // Truncated or altered anywhere: the CRC-32 catches it (the library refuses it too).
+  const std::string truncated = write("truncated.dcv", std::vector<uint8_t>(bytes.begin(), bytes.end() - 10));
+  EXPECT_THROW(DecodeWithTheLibrary(truncated), FormatError);
+  expectRefused(truncated, "CRC-32 mismatch", false);
+  std::vector<uint8_t> altered = bytes;
+  altered[bytes.size() / 2] ^= 0x10;
+  expectRefused(write("altered.dcv", altered), "CRC-32 mismatch", false);
+  expectRefused(write("text.dcv", { 'D', 'C', 'V', '1', '\n' }), "not a .dcv file", false);
+
+  // A sound container around a cut payload: the stream overruns, in the positions or in the values.
+  const std::string shortPositions =
+    write("short-positions.dcv", SerializeFile(d.header, std::vector<uint8_t>(payload.begin(), payload.begin() + 6)));
+  EXPECT_THROW(DecodeWithTheLibrary(shortPositions), FormatError);
+  expectRefused(shortPositions, "point positions", false); // a missing corner or the overrun, checked in this order
+  const std::string shortValues =
+    write("short-values.dcv", SerializeFile(d.header, std::vector<uint8_t>(payload.begin(), payload.end() - 1)));
+  EXPECT_THROW(DecodeWithTheLibrary(shortValues), FormatError);
+  expectRefused(shortValues, "ends inside the values", true);
+}
+
+} // namespace
