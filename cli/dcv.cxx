@@ -313,7 +313,9 @@ Compress(const ApproximateOptions & o)
   const auto   region = image->GetBufferedRegion();
   const auto   n = region.GetNumberOfPixels();
   const double peak = dcv::PSNRPeak(image->GetBufferPointer(), n);
-  const double step = o.step > 0.0 ? o.step : dcv::DefaultQuantizationStep(peak, std::is_integral<TPixel>::value);
+  // --step 0: with --bpv rate control chooses the step, with --points it is the default (1/64 of the peak).
+  const double givenStep =
+    o.step > 0.0 || o.bpv > 0.0 ? o.step : dcv::DefaultQuantizationStep(peak, std::is_integral<TPixel>::value);
 
   dcv::FileHeader header;
   header.pixelType = PixelTypeOf<TPixel>();
@@ -329,10 +331,9 @@ Compress(const ApproximateOptions & o)
   image->TransformIndexToPhysicalPoint(region.GetIndex(), first);
   for (unsigned int i = 0; i < 3; ++i)
     header.origin[i] = first[i];
-  header.quantizationStep = step;
 
   auto approximate = MakeApproximationFilter<ImageType>(image, o);
-  approximate->SetQuantizationStep(step);
+  approximate->SetQuantizationStep(givenStep);
   // Rate control (--bpv) is the filter's: the method runs once, then adjusts its point count.
   approximate->SetBitsPerVoxel(o.bpv);
   try
@@ -355,6 +356,8 @@ Compress(const ApproximateOptions & o)
     a.values.push_back(mesh->GetPointData()->ElementAt(i));
   }
   header.quantizationOrigin = approximate->GetQuantizationOrigin();
+  const double step = approximate->GetChosenQuantizationStep();
+  header.quantizationStep = step;
   header.numberOfPoints = uint32_t(a.points.size());
   const std::vector<uint8_t> bytes = dcv::SerializeFile(header, dcv::EncodePayload(a, header.quantizationOrigin, step));
   if (o.bpv > 0.0 && double(bytes.size()) > std::floor(o.bpv * double(n) / 8.0))
@@ -573,7 +576,10 @@ main(int argc, char * argv[])
   addMethodOptions(compress, compressOptions);
   compress->add_option("OUTPUT", compressOptions.output, "Output .dcv file")->required();
   compress->add_option("--bpv", compressOptions.bpv, "Bits per voxel of the whole file (then --points is chosen)");
-  compress->add_option("--step", compressOptions.step, "Quantization step of the values (0: 1/64 of the peak)");
+  compress->add_option("--step",
+                       compressOptions.step,
+                       "Quantization step of the values (0: with --bpv the best of 1, 2 and 4 times 1/64 of the peak, "
+                       "with --points 1/64 of the peak)");
 
   std::string decompressInput, decompressOutput;
   bool        decompressForce = false, decompressQuiet = false;

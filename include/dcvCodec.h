@@ -66,24 +66,27 @@ struct BudgetResult
   std::vector<uint8_t> payload;     // EncodePayload() of the engine's final approximation
   std::size_t          firstCount;  // the point count the method ran with
   unsigned             adjustments; // Resize() steps after it
+  double               step;        // the quantization step of the payload
 };
 
-/** Rate control: approximates with the largest payload that fits `payloadBytes` (at least 97% of it
- * unless the approximation becomes exact first), running the method once.
+/** Rate control: approximates with the payload of best quality that fits `payloadBytes` (at least 97% of
+ * it unless the approximation becomes exact first), running the method once.
  *
- * The coded size is nearly proportional to the point count, at a number of bits per point that
+ * Point count: the coded size is nearly proportional to the count, at a number of bits per point that
  * grows slowly as points get sparser. So the method runs once, with a count predicted by
- * log2(voxels / n) + 4 bits per point (positions and values), and then each measured size predicts
- * the count that fills 98.5% of the budget; the engine reaches it by Resize() (decimation or more
- * refinement on the same tetrahedralization, least squares again), which costs a fraction of a run.
- * The engine ends holding exactly the returned payload's approximation. Values are quantized as
- * q0 + k q (the engine's parameters must say the same). Throws std::length_error when even the
- * 8 corners do not fit. */
+ * log2(voxels / n) + c bits per point, and then each measured size predicts the count that fills
+ * 98.5% of the budget; the engine reaches it by Resize() (decimation or more refinement on the same
+ * tetrahedralization, least squares again), which costs a fraction of a run.
+ * Quantization step: the engine's step times each of `stepMultiples` (>= 1) is tried on the fitted
+ * mesh (SetQuantizationStep, least squares in modes that have it), its error carried to the budget by
+ * the local rate-distortion law measured while fitting; the best is kept and the count fitted again.
+ * The engine ends holding exactly the returned payload's approximation; values are q0 + k step.
+ * Throws std::length_error when even the 8 corners do not fit. */
 DelaunayCompression_EXPORT BudgetResult
 ApproximateToBudget(RefinementEngine &                         engine,
                     std::size_t                                payloadBytes,
                     double                                     q0,
-                    double                                     q,
+                    const std::vector<double> &                stepMultiples = { 1.0 },
                     const RefinementEngine::ProgressFunction & progress = RefinementEngine::ProgressFunction());
 
 } // namespace dcv

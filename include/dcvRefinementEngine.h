@@ -152,6 +152,12 @@ public:
   void
   Resize(std::size_t numberOfPoints);
 
+  /** Changes the quantization step of the vertex values: each value is quantized again from its source
+   * (I(p), or I*(p) when that is nearer the current value); OptimizeValues() may follow. Rate control
+   * uses it to compare steps on one mesh. Throws std::invalid_argument unless the step is positive. */
+  void
+  SetQuantizationStep(double step);
+
   /** Replaces the vertex values by those minimizing the total squared error against the image on the
    * current tetrahedralization (clamped to the value range); keeps the old ones if that is not better.
    * Returns the squared error gained (>= 0). */

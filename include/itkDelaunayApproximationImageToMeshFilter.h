@@ -50,9 +50,10 @@ namespace itk
  * - Alpha (default 0.9, > 0): positions are chosen on I* until PSNR(L) >= Alpha * PSNR(I*), then on I.
  * - QuantizationStep (default 0: none): vertex values are then min(I) + k * QuantizationStep, and the
  *   refinement works with these values (what a .dcv file stores). GetQuantizationOrigin() gives min(I).
- * - BitsPerVoxel (default 0: off): when positive (QuantizationStep must be too), the point count is
- *   chosen instead of NumberOfPoints so that the .dcv file of the output (without metadata) has at most
- *   floor(BitsPerVoxel * voxels / 8) bytes and at least 97% of that (dcv::ApproximateToBudget).
+ * - BitsPerVoxel (default 0: off): when positive, the point count is chosen instead of NumberOfPoints
+ *   so that the .dcv file of the output (without metadata) has at most floor(BitsPerVoxel * voxels / 8)
+ *   bytes and at least 97% of that, and, when QuantizationStep is 0, the step too: the best of 1, 2 and
+ *   4 times 1/64 of the peak (dcv::ApproximateToBudget). GetChosenQuantizationStep() gives the step.
  *
  * Results after Update(): GetSquaredError() (sum over voxels of the squared difference between the
  * input and the unrounded spline) and GetMeanSquaredError().
@@ -111,6 +112,8 @@ public:
   itkSetMacro(QuantizationStep, double);
   itkGetConstMacro(QuantizationStep, double);
   itkGetConstMacro(QuantizationOrigin, double);
+  /** Step of the output's values after Update(): QuantizationStep, or the one rate control chose. */
+  itkGetConstMacro(ChosenQuantizationStep, double);
 
   /** Size of the output's .dcv file in bits per voxel (default 0: off, NumberOfPoints decides). */
   itkSetMacro(BitsPerVoxel, double);
@@ -164,6 +167,7 @@ private:
   double        m_QuantizationStep{ 0.0 };
   double        m_QuantizationOrigin{ 0.0 };
   double        m_BitsPerVoxel{ 0.0 };
+  double        m_ChosenQuantizationStep{ 0.0 };
   double        m_SquaredError{ 0.0 };
   double        m_MeanSquaredError{ 0.0 };
   double        m_SmoothedPSNR{ 0.0 };

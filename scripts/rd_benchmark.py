@@ -17,6 +17,9 @@ int16 headsq-ct.nrrd) minus their minimum (added back after decoding), at the bi
 OpenJPEG up to 16 bits (raw -F X,Y,Z,bits,u / 16-bit PGM), x265 and aomenc at 8, 10 or 12 bits (a range
 needing more than 12 bits is right-shifted, noted). Float volumes get dcv only.
 
+Default volumes: every *.nrrd in ../shared/data, norm-256.nrrd (256^3) included; it is the slow one (on 2 busy
+cores: x265 searched 0.03125 bpv on it in ~2 minutes, the four peers at the four rates took ~28 minutes).
+
 Results: a Markdown table on stdout and in build/rd/rd.md, a CSV in build/rd/rd.csv and one PNG plot per
 volume (PSNR vs bpv) in build/rd/. --merge adds the rows of earlier runs' rd.csv files (this run's rows win
 for the same volume, bpv and codec), e.g. run the peers once and re-run dcv alone later.

@@ -661,6 +661,33 @@ RefinementEngine::Resize(std::size_t numberOfPoints)
   }
 }
 
+void
+RefinementEngine::SetQuantizationStep(double step)
+{
+  Impl & d = *m_Impl;
+  if (!(step > 0.0))
+  {
+    throw std::invalid_argument("RefinementEngine: the quantization step must be positive, got " + std::to_string(step));
+  }
+  d.parameters.quantizationStep = step;
+  for (VertexId v = 0; v < d.mesh.NumberOfVertexIds(); ++v)
+  {
+    if (d.vertexAlive[v])
+    {
+      const GridPoint p = d.mesh.Point(v);
+      const uint64_t  voxel = d.grid.Offset(p[0], p[1], p[2]);
+      double          source = d.image[voxel];
+      if (d.parameters.smoothed &&
+          std::abs(d.values[v] - double(d.parameters.smoothed[voxel])) < std::abs(d.values[v] - source))
+      {
+        source = d.parameters.smoothed[voxel];
+      }
+      d.values[v] = d.Quantize(source);
+    }
+  }
+  d.RescanAll();
+}
+
 double
 RefinementEngine::OptimizeValues()
 {

@@ -234,14 +234,16 @@ ExpectBudgetMet(const std::vector<float> & image,
   p.peak = peak;
   RefinementEngine   engine(image.data(), grid, p);
   const std::size_t  budget = std::size_t(bpv * double(grid.NumberOfVoxels()) / 8.0) - 90;
-  const BudgetResult r = ApproximateToBudget(engine, budget, p.quantizationOrigin, q);
+  const BudgetResult r = ApproximateToBudget(engine, budget, p.quantizationOrigin, { 1.0, 2.0, 4.0 });
   EXPECT_LE(r.payload.size(), budget) << bpv;
   EXPECT_GE(double(r.payload.size()), 0.97 * double(budget)) << bpv;
-  EXPECT_LE(r.adjustments, 6u);
+  EXPECT_LE(r.adjustments, 12u);
+  EXPECT_TRUE(r.step == q || r.step == 2 * q || r.step == 4 * q) << r.step;
+  EXPECT_EQ(engine.GetParameters().quantizationStep, r.step);
   const Approximation final = engine.GetApproximation();
-  EXPECT_EQ(EncodePayload(final, p.quantizationOrigin, q), r.payload);
+  EXPECT_EQ(EncodePayload(final, p.quantizationOrigin, r.step), r.payload);
   const Approximation decoded =
-    DecodePayload(r.payload, grid, uint32_t(final.points.size()), p.quantizationOrigin, q, "budget");
+    DecodePayload(r.payload, grid, uint32_t(final.points.size()), p.quantizationOrigin, r.step, "budget");
   std::vector<float> a(grid.NumberOfVoxels()), b(grid.NumberOfVoxels());
   Rasterize(final, a.data());
   Rasterize(decoded, b.data());
@@ -278,7 +280,9 @@ TEST(Codec, RateControlRefusesABudgetTheCornersExceed)
   RefinementParameters     p;
   p.quantizationStep = 4.0;
   RefinementEngine engine(image.data(), grid, p);
-  EXPECT_THROW(ApproximateToBudget(engine, 2, 0.0, 4.0), std::length_error);
+  EXPECT_THROW(ApproximateToBudget(engine, 2, 0.0), std::length_error);
+  RefinementEngine unquantized(image.data(), grid);
+  EXPECT_THROW(ApproximateToBudget(unquantized, 1000, 0.0), std::invalid_argument);
 }
 
 } // namespace

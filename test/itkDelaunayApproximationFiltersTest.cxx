@@ -108,7 +108,7 @@ TEST(DelaunayApproximationImageToMeshFilter, RefusesBadParameters)
     if (which == 2)
       approximate->SetRangeSigma(-1.0);
     if (which == 3)
-      approximate->SetBitsPerVoxel(0.1); // without a quantization step
+      approximate->SetBitsPerVoxel(-0.1);
     try
     {
       approximate->Update();
@@ -117,7 +117,7 @@ TEST(DelaunayApproximationImageToMeshFilter, RefusesBadParameters)
     catch (const itk::ExceptionObject & e)
     {
       EXPECT_NE(std::string(e.GetDescription()).find("must be positive"), std::string::npos) << e.GetDescription();
-      EXPECT_NE(std::string(e.GetDescription()).find(which == 0 ? "Alpha" : which == 3 ? "QuantizationStep" : "Sigma"),
+      EXPECT_NE(std::string(e.GetDescription()).find(which == 0 ? "Alpha" : which == 3 ? "BitsPerVoxel" : "Sigma"),
                 std::string::npos);
     }
   }
