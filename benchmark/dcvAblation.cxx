@@ -21,10 +21,9 @@
 // Usage: dcvAblation [--voxels-per-point V | --bpv R] VOLUME...
 //   --voxels-per-point V: equal point counts, points = voxels / V (default V = 600: about what 0.03125
 //                         bits per voxel affords); PSNR of the unrounded spline
-//   --bpv R:              equal file sizes, as dcv compress --bpv R (default quantization step, rate
-//                         control); PSNR of the decoded image, what dcv decompress writes
+//   --bpv R:              equal file sizes, as dcv compress --bpv R (rate control chooses the point
+//                         count and the step); PSNR of the decoded image, what dcv decompress writes
 #include "dcvApproximation.h"
-#include "dcvCodec.h"
 #include "dcvVolumeHeader.h"
 #include "itkDelaunayApproximationImageToMeshFilter.h"
 
@@ -68,8 +67,7 @@ Row(const std::string & path, double voxelsPerPoint, double bpv)
     filter->SetMode(mode);
     if (bpv > 0.0)
     {
-      filter->SetQuantizationStep(dcv::DefaultQuantizationStep(peak, std::is_integral<TPixel>::value));
-      filter->SetBitsPerVoxel(bpv);
+      filter->SetBitsPerVoxel(bpv); // and QuantizationStep 0: rate control chooses it, as dcv compress
     }
     const auto start = std::chrono::steady_clock::now();
     filter->Update();
@@ -81,7 +79,11 @@ Row(const std::string & path, double voxelsPerPoint, double bpv)
       rasterize->SetReferenceImage(image);
       rasterize->Update();
       const double error = dcv::SquaredError(image->GetBufferPointer(), rasterize->GetOutput()->GetBufferPointer(), n);
-      std::printf(" %.2f (%lu points, %.1f s) |", dcv::PSNR(error, n, peak), filter->GetOutput()->GetNumberOfPoints(), seconds);
+      std::printf(" %.2f (%lu, %g, %.1f s) |",
+                  dcv::PSNR(error, n, peak),
+                  filter->GetOutput()->GetNumberOfPoints(),
+                  filter->GetChosenQuantizationStep(),
+                  seconds);
     }
     else
     {
