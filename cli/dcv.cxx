@@ -168,7 +168,6 @@ Observe(itk::ProcessObject * process, const std::string & label, bool quiet)
   }
 }
 
-/** Peak of the PSNR: 255 for 8-bit data, else the range of the original volume. */
 struct ApproximateOptions
 {
   std::string input;
