@@ -188,6 +188,12 @@ DecodePayload(const std::vector<uint8_t> & payload,
   {
     throw FormatError(name + ": the payload ends inside the values");
   }
+  if (decoder.GetPosition() != payload.size())
+  {
+    // A correct stream is read to its last byte (docs/format.md, "Arithmetic decoder").
+    throw FormatError(name + ": " + std::to_string(payload.size() - decoder.GetPosition()) +
+                      " bytes follow the coded values");
+  }
   return a;
 }
 

@@ -209,6 +209,10 @@ TEST(Codec, PayloadDecodesToTheEngineOutputBitForBit)
     const std::vector<uint8_t> cut(payload.begin(), payload.begin() + std::ptrdiff_t(n));
     EXPECT_THROW(DecodePayload(cut, grid, uint32_t(encoded.points.size()), 0.0, 4.0, "p"), FormatError) << n;
   }
+  // Bytes after a complete stream are refused too.
+  std::vector<uint8_t> longer = payload;
+  longer.push_back(0);
+  EXPECT_THROW(DecodePayload(longer, grid, uint32_t(encoded.points.size()), 0.0, 4.0, "p"), FormatError);
   // Values off the lattice are refused by the encoder.
   Approximation off = encoded;
   off.values[3] += 1.0;
