@@ -21,6 +21,7 @@
 #include "dcvFileFormat.h"
 #include "dcvPhantom.h"
 #include "dcvVolumeHeader.h"
+#include "itkDCVGridPoint.h"
 #include "itkDCVImageIOFactory.h"
 #include "itkDelaunayApproximationImageToMeshFilter.h"
 #include "itkTetrahedralMeshToImageFilter.h"
@@ -348,10 +349,12 @@ Compress(const ApproximateOptions & o)
   a.grid = header.size;
   for (itk::IdentifierType i = 0; i < mesh->GetNumberOfPoints(); ++i)
   {
-    const auto c = image->template TransformPhysicalPointToContinuousIndex<double>(mesh->GetPoint(i));
-    a.points.push_back({ int32_t(std::lround(c[0] - double(region.GetIndex()[0]))),
-                         int32_t(std::lround(c[1] - double(region.GetIndex()[1]))),
-                         int32_t(std::lround(c[2] - double(region.GetIndex()[2]))) });
+    dcv::GridPoint g;
+    if (!itk::PhysicalPointToGridPoint(image.GetPointer(), region, mesh->GetPoint(i), g))
+    {
+      throw Failure("internal error: an approximation point of " + Quoted(o.input) + " is off the voxel grid");
+    }
+    a.points.push_back(g);
     a.values.push_back(mesh->GetPointData()->ElementAt(i));
   }
   header.quantizationOrigin = approximate->GetQuantizationOrigin();

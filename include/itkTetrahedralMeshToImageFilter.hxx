@@ -20,6 +20,8 @@
 
 #include "itkTetrahedralMeshToImageFilter.h"
 
+#include "itkDCVGridPoint.h"
+
 #include "dcvRasterizer.h"
 #include "itkCellInterface.h"
 
@@ -113,7 +115,6 @@ TetrahedralMeshToImageFilter<TInputMesh, TOutputImage>::GenerateData()
   }
   std::vector<dcv::GridPoint> points(numberOfPoints);
   std::vector<double>         values(numberOfPoints);
-  const auto                  start = region.GetIndex();
   SizeValueType               i = 0;
   for (auto it = mesh->GetPoints()->Begin(); it != mesh->GetPoints()->End(); ++it, ++i)
   {
@@ -123,20 +124,9 @@ TetrahedralMeshToImageFilter<TInputMesh, TOutputImage>::GenerateData()
       itkExceptionMacro("Mesh point identifier " << id << " is not below the number of points " << numberOfPoints
                                                  << "; identifiers must be 0 to n-1.");
     }
-    typename OutputImageType::PointType physical;
-    physical.CastFrom(it->Value());
-    const auto continuous =
-      output->template TransformPhysicalPointToContinuousIndex<double>(physical);
-    for (unsigned int d = 0; d < 3; ++d)
+    if (!PhysicalPointToGridPoint(output, region, it->Value(), points[id]))
     {
-      const double c = continuous[d] - double(start[d]);
-      const double r = std::round(c);
-      if (std::abs(c - r) > 1e-3 || r < 0 || r >= double(size[d]))
-      {
-        itkExceptionMacro("Mesh point " << id << " at " << it->Value() << " is not on a voxel of the output grid "
-                                        << "(continuous index " << continuous << ").");
-      }
-      points[id][d] = int32_t(r);
+      itkExceptionMacro("Mesh point " << id << " at " << it->Value() << " is not on a voxel of the output grid.");
     }
     values[id] = double(pointData->ElementAt(id));
   }

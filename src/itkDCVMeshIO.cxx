@@ -20,6 +20,7 @@
 
 #include "dcvApproximation.h"
 #include "dcvCodec.h"
+#include "itkDCVGridPoint.h"
 #include "itkVersion.h"
 
 #include <cmath>
@@ -221,18 +222,11 @@ DCVMeshIO::Write()
     {
       p[d] = m_Points[3 * i + d];
     }
-    const auto     c = m_ReferenceImage->TransformPhysicalPointToContinuousIndex<double>(p);
     dcv::GridPoint g;
-    for (unsigned int d = 0; d < 3; ++d)
+    if (!PhysicalPointToGridPoint(m_ReferenceImage.GetPointer(), region, p, g))
     {
-      const double x = c[d] - double(region.GetIndex()[d]);
-      const double r = std::round(x);
-      if (std::abs(x - r) > 1e-3 || r < 0 || r >= double(region.GetSize()[d]))
-      {
-        itkExceptionMacro("Cannot write " << name << ": mesh point " << i << " at " << p
-                                          << " is not on a voxel of the reference grid.");
-      }
-      g[d] = int32_t(r);
+      itkExceptionMacro("Cannot write " << name << ": mesh point " << i << " at " << p
+                                        << " is not on a voxel of the reference grid.");
     }
     a.points.push_back(g);
     const double k = std::round((m_Values[i] - m_QuantizationOrigin) / m_QuantizationStep);
