@@ -24,7 +24,7 @@
 //   --bpv R:              equal file sizes, as dcv compress --bpv R (rate control chooses the point
 //                         count and the step); PSNR of the decoded image, what dcv decompress writes
 #include "dcvApproximation.h"
-#include "dcvVolumeHeader.h"
+#include "dcvTools.h"
 #include "itkDelaunayApproximationImageToMeshFilter.h"
 
 #include "itkImageFileReader.h"
@@ -144,21 +144,8 @@ main(int argc, char * argv[])
   {
     try
     {
-      const auto io = dcv::ReadVolumeHeader(path);
-      switch (io->GetComponentType())
-      {
-        case itk::IOComponentEnum::UCHAR:
-          Row<uint8_t>(path, voxelsPerPoint, bpv);
-          break;
-        case itk::IOComponentEnum::SHORT:
-          Row<int16_t>(path, voxelsPerPoint, bpv);
-          break;
-        case itk::IOComponentEnum::USHORT:
-          Row<uint16_t>(path, voxelsPerPoint, bpv);
-          break;
-        default:
-          Row<float>(path, voxelsPerPoint, bpv);
-      }
+      dcv::VisitPixelType(dcv::tools::ReadVolumePixelType(path),
+                          [&](auto pixel) { Row<decltype(pixel)>(path, voxelsPerPoint, bpv); });
     }
     catch (const std::exception & e)
     {

@@ -21,7 +21,7 @@
 // Usage: dcvBenchmark [--no-header] VOLUME N1 [N2 ...]
 #include "dcvApproximation.h"
 #include "dcvRefinementEngine.h"
-#include "dcvVolumeHeader.h"
+#include "dcvTools.h"
 
 #include "itkImage.h"
 #include "itkImageFileReader.h"
@@ -48,8 +48,8 @@ namespace
 using ImageType = itk::Image<float, 3>;
 using Clock = std::chrono::steady_clock;
 
-using dcv::Failure; // printed as "dcvBenchmark: message" with exit status 1
-using dcv::Quoted;
+using dcv::tools::Failure; // printed as "dcvBenchmark: message" with exit status 1
+using dcv::tools::Quoted;
 
 struct Volume
 {
@@ -63,7 +63,7 @@ struct Volume
 Volume
 ReadVolume(const std::string & path)
 {
-  const auto io = dcv::ReadVolumeHeader(path);
+  const auto io = dcv::tools::ReadVolumeHeader(path);
 
   Volume     volume;
   const auto component = io->GetComponentType();

@@ -19,9 +19,7 @@ set(DelaunayCompression_ITK_IO_COMPONENTS ITKIONRRD ITKIONIFTI ITKIOMeta ITKIOGD
 find_package(ITK 5.2 REQUIRED COMPONENTS ${DelaunayCompression_ITK_COMPONENTS} ${DelaunayCompression_ITK_IO_COMPONENTS}
   ITKTestKernel)
 include(${ITK_USE_FILE})
-find_package(CGAL REQUIRED)
-find_package(Eigen3 3.3 REQUIRED NO_MODULE)
-find_package(ZLIB REQUIRED) # crc32 of the .dcv files
+set(DelaunayCompression_PROGRAM_LIBRARIES ${ITK_LIBRARIES})
 
 # Installed programs find the module's library relative to themselves, whatever the prefix.
 file(RELATIVE_PATH _dcv_bin_to_lib "/${CMAKE_INSTALL_BINDIR}" "/${CMAKE_INSTALL_LIBDIR}")
@@ -29,7 +27,7 @@ set(CMAKE_INSTALL_RPATH "$ORIGIN/${_dcv_bin_to_lib}")
 set(CMAKE_INSTALL_RPATH_USE_LINK_PATH ON)
 
 add_subdirectory(src)
-add_subdirectory(cli)
+add_subdirectory(tools)
 if(BUILD_TESTING)
   enable_testing()
   add_subdirectory(test)

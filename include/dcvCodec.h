@@ -20,10 +20,8 @@
 
 #include "DelaunayCompressionExport.h"
 #include "dcvApproximation.h"
-#include "dcvRefinementEngine.h"
+#include "dcvFileFormat.h"
 
-#include <algorithm>
-#include <cmath>
 #include <cstdint>
 #include <string>
 #include <vector>
@@ -52,42 +50,11 @@ DelaunayCompression_EXPORT Approximation
                                          double                       q,
                                          const std::string &          name);
 
-/** The quantization step dcv compress uses by default: 1/64 of the PSNR peak (4 for 8-bit data),
- * a whole number for integer data. */
-inline double
-DefaultQuantizationStep(double peak, bool integer)
-{
-  return integer ? std::max(1.0, std::round(peak / 64.0)) : peak / 64.0;
-}
-
-/** What ApproximateToBudget() did. */
-struct BudgetResult
-{
-  std::vector<uint8_t> payload;     // EncodePayload() of the engine's final approximation
-  std::size_t          firstCount;  // the point count the method ran with
-  unsigned             adjustments; // Resize() steps after it
-  double               step;        // the quantization step of the payload
-};
-
-/** Rate control: approximates with the payload of best quality that fits `payloadBytes` (at least 97% of
- * it unless the approximation becomes exact first), running the method once.
- *
- * Point count: the coded size is nearly proportional to the count, at a number of bits per point that
- * grows slowly as points get sparser. So the method runs once, with a count predicted by
- * log2(voxels / n) + c bits per point, and then each measured size predicts the count that fills
- * 98.5% of the budget; the engine reaches it by Resize() (decimation or more refinement on the same
- * tetrahedralization, least squares again), which costs a fraction of a run.
- * Quantization step: the engine's step times each of `stepMultiples` (>= 1) is tried on the fitted
- * mesh (SetQuantizationStep, least squares in modes that have it), its error carried to the budget by
- * the local rate-distortion law measured while fitting; the best is kept and the count fitted again.
- * The engine ends holding exactly the returned payload's approximation; values are q0 + k step.
- * Throws std::length_error when even the 8 corners do not fit. */
-DelaunayCompression_EXPORT BudgetResult
-ApproximateToBudget(RefinementEngine &                         engine,
-                    std::size_t                                payloadBytes,
-                    double                                     q0,
-                    const std::vector<double> &                stepMultiples = { 1.0 },
-                    const RefinementEngine::ProgressFunction & progress = RefinementEngine::ProgressFunction());
+/** The one "decode this file" function of every reader (ImageIO, MeshIO, ImageSource, the tools):
+ * the points, values and tetrahedra of a parsed file, ready for Rasterize(). Throws FormatError naming
+ * the file when its payload is damaged. */
+DelaunayCompression_EXPORT Approximation
+                           Decode(const CompressedFile & file);
 
 } // namespace dcv
 

@@ -25,6 +25,7 @@
 #include <cstdint>
 #include <stdexcept>
 #include <string>
+#include <type_traits>
 #include <utility>
 #include <vector>
 
@@ -84,13 +85,44 @@ VisitPixelType(PixelType type, TFunction && f)
   }
 }
 
+/** The pixel type of C++ type T (any 8, 16 or 32-bit integer, float, double). */
+template <typename T>
+constexpr PixelType
+PixelTypeOf()
+{
+  static_assert(std::is_arithmetic<T>::value && !std::is_same<T, bool>::value && sizeof(T) <= 8,
+                ".dcv volumes hold 8, 16 or 32-bit integers, float or double");
+  if constexpr (std::is_floating_point<T>::value)
+  {
+    static_assert(sizeof(T) == 4 || sizeof(T) == 8, "float or double");
+    return sizeof(T) == 4 ? PixelType::Float32 : PixelType::Float64;
+  }
+  else
+  {
+    static_assert(sizeof(T) <= 4, ".dcv volumes hold integers of at most 32 bits");
+    constexpr bool s = std::is_signed<T>::value;
+    return sizeof(T) == 1 ? (s ? PixelType::Int8 : PixelType::UInt8)
+                          : sizeof(T) == 2 ? (s ? PixelType::Int16 : PixelType::UInt16)
+                                           : (s ? PixelType::Int32 : PixelType::UInt32);
+  }
+}
+
+/** Whether a pixel type holds integers. */
+inline bool
+IsInteger(PixelType type)
+{
+  return type != PixelType::Float32 && type != PixelType::Float64;
+}
+
 /** Everything of a .dcv file but its coded payload. */
 struct FileHeader
 {
   static constexpr uint8_t Version = 1;
+  /** The mode of a file whose points were not chosen by the encoder (written as a mesh). */
+  static constexpr uint8_t UnknownMode = 255;
 
   PixelType              pixelType{ PixelType::UInt8 };
-  uint8_t                mode{ 0 }; // informative: the dcv::Mode that encoded it
+  uint8_t                mode{ 0 }; // informative: the dcv::Mode that encoded it, or UnknownMode
   GridSize               size;
   std::array<double, 3>  spacing{ 1.0, 1.0, 1.0 };
   std::array<double, 3>  origin{ 0.0, 0.0, 0.0 };
@@ -112,6 +144,19 @@ ParseFile(const std::vector<uint8_t> & bytes,
           const std::string &          name,
           FileHeader &                 header,
           std::vector<uint8_t> &       payload);
+
+/** A parsed .dcv file: its header and coded payload, and the name errors give it (the path, quoted). */
+struct CompressedFile
+{
+  std::string          name;
+  FileHeader           header;
+  std::vector<uint8_t> payload;
+  std::size_t          size{ 0 }; // bytes of the whole file
+};
+
+/** Reads and parses a whole file, once (FormatError naming it when it cannot be read or parsed). */
+DelaunayCompression_EXPORT CompressedFile
+                           ReadCompressedFile(const std::string & path);
 
 /** Reads a whole file (FormatError naming it when it cannot be read). */
 DelaunayCompression_EXPORT std::vector<uint8_t>

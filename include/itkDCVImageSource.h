@@ -21,6 +21,7 @@
 #include "dcvApproximation.h"
 #include "dcvCodec.h"
 #include "dcvFileFormat.h"
+#include "itkDCVImageInformation.h"
 #include "itkImageSource.h"
 
 namespace itk
@@ -78,41 +79,21 @@ protected:
   void
   GenerateOutputInformation() override
   {
-    dcv::FileHeader      header;
-    std::vector<uint8_t> payload;
+    dcv::CompressedFile file;
     try
     {
-      dcv::ParseFile(dcv::ReadWholeFile(m_FileName), "'" + m_FileName + "'", header, payload);
+      file = dcv::ReadCompressedFile(m_FileName);
     }
     catch (const dcv::FormatError & e)
     {
       itkExceptionMacro(<< e.what());
     }
-    if (payload != m_Payload)
+    if (file.payload != m_File.payload || file.header.numberOfPoints != m_File.header.numberOfPoints)
     {
-      m_Payload = payload;
-      m_Header = header;
+      m_File = std::move(file);
       m_Decoded = false;
     }
-    OutputImageType *                     output = this->GetOutput();
-    typename OutputImageType::SizeType    size;
-    typename OutputImageType::SpacingType spacing;
-    typename OutputImageType::PointType   origin;
-    typename OutputImageType::DirectionType direction;
-    for (unsigned int i = 0; i < 3; ++i)
-    {
-      size[i] = SizeValueType((&header.size.x)[i]);
-      spacing[i] = header.spacing[i];
-      origin[i] = header.origin[i];
-      for (unsigned int j = 0; j < 3; ++j)
-      {
-        direction(i, j) = header.direction[3 * i + j];
-      }
-    }
-    output->SetLargestPossibleRegion(typename OutputImageType::RegionType(size));
-    output->SetSpacing(spacing);
-    output->SetOrigin(origin);
-    output->SetDirection(direction);
+    CopyDCVGeometry(m_File.header, this->GetOutput());
   }
 
   void
@@ -126,12 +107,7 @@ protected:
     {
       try
       {
-        m_Approximation = dcv::DecodePayload(m_Payload,
-                                             m_Header.size,
-                                             m_Header.numberOfPoints,
-                                             m_Header.quantizationOrigin,
-                                             m_Header.quantizationStep,
-                                             "'" + m_FileName + "'");
+        m_Approximation = dcv::Decode(m_File);
       }
       catch (const dcv::FormatError & e)
       {
@@ -150,8 +126,7 @@ protected:
 
 private:
   std::string          m_FileName;
-  dcv::FileHeader      m_Header;
-  std::vector<uint8_t> m_Payload;
+  dcv::CompressedFile  m_File;
   dcv::Approximation   m_Approximation;
   bool                 m_Decoded{ false };
   SizeValueType        m_NumberOfRasterizedCells{ 0 };

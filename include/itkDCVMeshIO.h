@@ -36,8 +36,12 @@ namespace itk
  * since a reader rebuilds them as the Delaunay tetrahedralization of the points. The IO must be told the
  * voxel grid with SetReferenceImage(); every point must lie on a voxel of it (within 0.001 voxel) and the
  * grid's 8 corners must be points, otherwise writing fails with a clear error. Values are rounded to
- * the lattice QuantizationOrigin + k QuantizationStep (defaults 0 and 1); DecodedPixelType (default
- * float32) is the pixel type a decoder gives the volume.
+ * the lattice QuantizationOrigin + k QuantizationStep: set both as the approximation filter reports
+ * them (GetQuantizationOrigin(), GetChosenQuantizationStep()); writing refuses a step left at 0.
+ * DecodedPixelType, the pixel type a decoder gives the volume, is the reference image's pixel type
+ * when it is an itk::Image of a .dcv pixel type, else it must be set. The file's mode is "unknown"
+ * (FileHeader::UnknownMode): the points were not chosen by the encoder. For a file at a bit rate,
+ * write the image with ImageFileWriter (DCVImageIO) instead.
  * \ingroup DelaunayCompression
  */
 class DelaunayCompression_EXPORT DCVMeshIO : public MeshIOBase
@@ -64,13 +68,12 @@ public:
   SetDecodedPixelType(dcv::PixelType type)
   {
     m_DecodedPixelType = type;
+    m_DecodedPixelTypeSet = true;
     this->Modified();
   }
+  /** The set type, else the reference image's (float32 when neither says). */
   dcv::PixelType
-  GetDecodedPixelType() const
-  {
-    return m_DecodedPixelType;
-  }
+  GetDecodedPixelType() const;
 
   bool
   CanReadFile(const char * fileName) override;
@@ -116,8 +119,9 @@ private:
 
   ImageBase<3>::ConstPointer m_ReferenceImage;
   double                     m_QuantizationOrigin{ 0.0 };
-  double                     m_QuantizationStep{ 1.0 };
+  double                     m_QuantizationStep{ 0.0 };
   dcv::PixelType             m_DecodedPixelType{ dcv::PixelType::Float32 };
+  bool                       m_DecodedPixelTypeSet{ false };
   dcv::FileHeader            m_Header;
   std::vector<double>        m_Points; // physical coordinates, written or read
   std::vector<double>        m_Values;

@@ -18,7 +18,7 @@
 #ifndef itkDelaunayApproximationImageToMeshFilter_h
 #define itkDelaunayApproximationImageToMeshFilter_h
 
-#include "dcvRefinementEngine.h"
+#include "dcvEncoder.h"
 #include "itkImageToMeshFilter.h"
 #include "itkTetrahedronCell.h"
 
@@ -54,12 +54,18 @@ namespace itk
  *   so that the .dcv file of the output (without metadata) has at most floor(BitsPerVoxel * voxels / 8)
  *   bytes and at least 97% of that, and, when QuantizationStep is 0, the step too: the best of 1, 2 and
  *   4 times 1/64 of the peak (dcv::ApproximateToBudget). GetChosenQuantizationStep() gives the step.
+ * - PSNR (default 0: off; not with BitsPerVoxel): when positive, the fewest points whose decoded image
+ *   (rounded to the input's pixel type) reaches this PSNR in dB (dcv::ApproximateToQuality); values
+ *   are quantized with QuantizationStep, or when it is 0 with 1/64 of the peak, less where the target
+ *   needs it.
  *
  * Results after Update(): GetSquaredError() (sum over voxels of the squared difference between the
  * input and the unrounded spline) and GetMeanSquaredError().
  *
  * The input is any 3D scalar image; each axis needs 2 to 65535 voxels. Pixel values are handled as
  * float. Progress events are sent during the refinement and AbortGenerateData() is honoured.
+ * The work is dcv::Approximate (itkDCVEncoder.h), the encoder's own path, so a mesh made here and a
+ * .dcv file written by ImageFileWriter with the same options hold the same points and values.
  *
  * \sa TetrahedralMeshToImageFilter
  * \ingroup DelaunayCompression
@@ -119,6 +125,10 @@ public:
   itkSetMacro(BitsPerVoxel, double);
   itkGetConstMacro(BitsPerVoxel, double);
 
+  /** Quality target in dB (default 0: off): the fewest points whose decoded PSNR reaches it. */
+  itkSetMacro(PSNR, double);
+  itkGetConstMacro(PSNR, double);
+
   /** Sum of squared errors of the approximation, after Update(). */
   itkGetConstMacro(SquaredError, double);
   /** Mean squared error of the approximation, after Update(). */
@@ -126,14 +136,8 @@ public:
   /** PSNR of I* against I, after Update() (0 when the mode does not smooth). */
   itkGetConstMacro(SmoothedPSNR, double);
 
-  /** Seconds of each phase of the last Update(). */
-  struct Timings
-  {
-    double smoothing{ 0.0 };
-    double refinement{ 0.0 };
-    double decimation{ 0.0 };
-    double leastSquares{ 0.0 };
-  };
+  /** Seconds of each phase of the last Update() (smoothing, refinement, decimation, least squares). */
+  using Timings = dcv::EncoderResult::Timings;
   const Timings &
   GetTimings() const
   {
@@ -167,6 +171,7 @@ private:
   double        m_QuantizationStep{ 0.0 };
   double        m_QuantizationOrigin{ 0.0 };
   double        m_BitsPerVoxel{ 0.0 };
+  double        m_PSNR{ 0.0 };
   double        m_ChosenQuantizationStep{ 0.0 };
   double        m_SquaredError{ 0.0 };
   double        m_MeanSquaredError{ 0.0 };

@@ -20,15 +20,9 @@
 
 #include "itkDelaunayApproximationImageToMeshFilter.h"
 
-#include "dcvCodec.h"
-#include "dcvFileFormat.h"
-#include "itkBilateralImageFilter.h"
-#include "itkImageRegionConstIterator.h"
+#include "itkDCVEncoder.h"
 #include "itkProcessObject.h"
 
-#include <algorithm>
-#include <chrono>
-#include <cmath>
 #include <stdexcept>
 
 namespace itk
@@ -62,172 +56,56 @@ DelaunayApproximationImageToMeshFilter<TInputImage, TOutputMesh>::GenerateData()
   {
     itkExceptionMacro("No input image.");
   }
-  const auto             region = input->GetBufferedRegion();
-  const auto             size = region.GetSize();
-  const dcv::GridSize    grid{ int32_t(size[0]), int32_t(size[1]), int32_t(size[2]) };
-  for (unsigned int i = 0; i < 3; ++i)
-  {
-    if (size[i] < 2 || size[i] > SizeValueType(dcv::MaximumGridExtent))
+  dcv::EncoderOptions options;
+  options.numberOfPoints = m_NumberOfPoints;
+  options.mode = m_Mode;
+  options.domainSigma = m_DomainSigma;
+  options.rangeSigma = m_RangeSigma;
+  options.alpha = m_Alpha;
+  options.quantizationStep = m_QuantizationStep;
+  options.bitsPerVoxel = m_BitsPerVoxel;
+  options.psnr = m_PSNR;
+  options.progress = [this](double fraction) {
+    this->UpdateProgress(float(fraction));
+    if (this->GetAbortGenerateData())
     {
-      itkExceptionMacro("The input image is " << size << " voxels; each axis needs 2 to " << dcv::MaximumGridExtent
-                                               << " voxels.");
+      ProcessAborted e(__FILE__, __LINE__);
+      e.SetDescription("DelaunayApproximationImageToMeshFilter: aborted");
+      throw e;
     }
-  }
-
-  if (!(m_DomainSigma > 0.0) || !(m_RangeSigma >= 0.0))
-  {
-    itkExceptionMacro("DomainSigma must be positive and RangeSigma positive or 0 (automatic), got "
-                      << m_DomainSigma << " and " << m_RangeSigma << ".");
-  }
-  if (m_Alpha <= 0.0)
-  {
-    itkExceptionMacro("Alpha must be positive, got " << m_Alpha << ".");
-  }
-
-  // The engine works on float values laid out as the grid (x fastest, as ITK's buffer).
-  std::vector<float> values;
-  values.reserve(grid.NumberOfVoxels());
-  for (ImageRegionConstIterator<InputImageType> it(input, region); !it.IsAtEnd(); ++it)
-  {
-    values.push_back(static_cast<float>(it.Get()));
-  }
-
-  dcv::RefinementParameters parameters = dcv::ParametersForMode(m_Mode);
-  parameters.alpha = m_Alpha;
-  parameters.valueMin = double(NumericTraits<InputPixelType>::NonpositiveMin());
-  parameters.valueMax = double(NumericTraits<InputPixelType>::max());
-  const auto range = std::minmax_element(values.begin(), values.end());
-  parameters.peak = dcv::PSNRPeak(*range.first,
-                                  *range.second,
-                                  sizeof(InputPixelType) == 1 && NumericTraits<InputPixelType>::is_integer);
-  if (!(m_QuantizationStep >= 0.0))
-  {
-    itkExceptionMacro("QuantizationStep must be positive or 0 (none), got " << m_QuantizationStep << ".");
-  }
-  if (!(m_BitsPerVoxel >= 0.0))
-  {
-    itkExceptionMacro("BitsPerVoxel must be positive or 0 (off), got " << m_BitsPerVoxel << ".");
-  }
-  m_QuantizationOrigin = double(*range.first);
-  // With a bit budget and no step given, rate control chooses among 1, 2 and 4 times the default step
-  // (measured at 0.03125 to 0.25 bpv on ../shared/data: each of the three wins somewhere).
-  const bool automaticStep = m_BitsPerVoxel > 0.0 && m_QuantizationStep == 0.0;
-  parameters.quantizationStep =
-    automaticStep ? dcv::DefaultQuantizationStep(parameters.peak, NumericTraits<InputPixelType>::is_integer)
-                  : m_QuantizationStep;
-  m_ChosenQuantizationStep = parameters.quantizationStep;
-  parameters.quantizationOrigin = m_QuantizationOrigin;
-
-  // I*: the bilateral filter of I (combined image approach), with sigmas in voxels.
-  using SmoothedImageType = Image<float, 3>;
-  typename SmoothedImageType::Pointer smoothed;
-  float                               engineStart = 0.0f; // progress fraction where the engine begins
-  m_Timings = Timings();
-  if (dcv::UsesSmoothedImage(m_Mode))
-  {
-    using BilateralType = BilateralImageFilter<InputImageType, SmoothedImageType>;
-    auto bilateral = BilateralType::New();
-    bilateral->SetInput(input);
-    typename BilateralType::ArrayType sigmas;
-    for (unsigned int d = 0; d < 3; ++d)
-    {
-      sigmas[d] = m_DomainSigma * input->GetSpacing()[d]; // the filter measures distances in physical units
-    }
-    bilateral->SetDomainSigma(sigmas);
-    // Automatic: 8% of the peak (20.4 for 8-bit data). Measured on headsq-ct (int16, range 3926) at 634
-    // points in mode dec+com: 24.19 dB with sigma 20, 25.02 dB with 300 (dec alone: 24.41 dB).
-    bilateral->SetRangeSigma(m_RangeSigma > 0.0 ? m_RangeSigma : 0.08 * parameters.peak);
-    // A kernel of 1.5 sigma instead of ITK's 2.5 (radius 2 instead of 3 at sigma 1): measured 2.3x
-    // faster on norm-256 (12.5 s instead of 28-31 s) for the same I* (PSNR 47.54 vs 47.45 dB).
-    bilateral->SetDomainMu(1.5);
-    const auto start = std::chrono::steady_clock::now();
-    bilateral->Update();
-    m_Timings.smoothing = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
-    smoothed = bilateral->GetOutput();
-    parameters.smoothed = smoothed->GetBufferPointer();
-    engineStart = 0.2f;
-    this->UpdateProgress(engineStart);
-  }
-
-  dcv::Approximation approximation;
+  };
+  dcv::EncoderResult r;
   try
   {
-    dcv::RefinementEngine engine(values.data(), grid, parameters);
-    const auto            progress = [this, engineStart](double fraction) {
-      this->UpdateProgress(engineStart + (1.0f - engineStart) * float(fraction));
-      if (this->GetAbortGenerateData())
-      {
-        ProcessAborted e(__FILE__, __LINE__);
-        e.SetDescription("DelaunayApproximationImageToMeshFilter: aborted");
-        throw e;
-      }
-    };
-    if (m_BitsPerVoxel > 0.0)
-    {
-      // The file is the payload plus a header that depends on the geometry only.
-      dcv::FileHeader header;
-      header.size = grid;
-      for (unsigned int i = 0; i < 3; ++i)
-        for (unsigned int j = 0; j < 3; ++j)
-          header.direction[3 * i + j] = input->GetDirection()(i, j);
-      const double fileBytes = std::floor(m_BitsPerVoxel * double(grid.NumberOfVoxels()) / 8.0);
-      const double headerBytes = double(dcv::SerializeFile(header, {}).size());
-      try
-      {
-        m_ChosenQuantizationStep = dcv::ApproximateToBudget(engine,
-                                                            std::size_t(std::max(0.0, fileBytes - headerBytes)),
-                                                            m_QuantizationOrigin,
-                                                            automaticStep ? std::vector<double>{ 1.0, 2.0, 4.0 }
-                                                                          : std::vector<double>{ 1.0 },
-                                                            progress)
-                                     .step;
-      }
-      catch (const std::length_error & e)
-      {
-        itkExceptionMacro("BitsPerVoxel " << m_BitsPerVoxel << " allows a .dcv file of " << fileBytes
-                                          << " bytes, " << headerBytes << " of them header: too few (" << e.what()
-                                          << ").");
-      }
-    }
-    else
-    {
-      engine.Approximate(m_NumberOfPoints, progress);
-    }
-    m_SquaredError = engine.GetSquaredError();
-    m_MeanSquaredError = m_SquaredError / double(grid.NumberOfVoxels());
-    m_SmoothedPSNR = engine.GetSmoothedPSNR();
-    m_Timings.refinement = engine.GetTimings().refinement;
-    m_Timings.decimation = engine.GetTimings().decimation;
-    m_Timings.leastSquares = engine.GetTimings().leastSquares;
-    approximation = engine.GetApproximation();
+    r = DCVApproximate(input, options);
+  }
+  catch (const ExceptionObject &)
+  {
+    throw;
   }
   catch (const std::exception & e)
   {
-    if (dynamic_cast<const ExceptionObject *>(&e))
-    {
-      throw;
-    }
-    itkExceptionMacro("Approximation failed: " << e.what());
+    itkExceptionMacro(<< e.what());
   }
+  m_QuantizationOrigin = r.header.quantizationOrigin;
+  m_ChosenQuantizationStep = r.quantizationStep;
+  m_SquaredError = r.squaredError;
+  m_MeanSquaredError = m_SquaredError / double(r.header.size.NumberOfVoxels());
+  m_SmoothedPSNR = r.smoothedPSNR;
+  m_Timings = r.timings;
 
-  OutputMeshType * mesh = this->GetOutput();
+  const dcv::Approximation & approximation = r.approximation;
+  OutputMeshType *           mesh = this->GetOutput();
   mesh->Initialize();
   auto points = OutputMeshType::PointsContainer::New();
   points->Reserve(approximation.points.size());
   auto pointData = OutputMeshType::PointDataContainer::New();
   pointData->Reserve(approximation.points.size());
-  const auto start = region.GetIndex();
+  const auto region = input->GetBufferedRegion();
   for (std::size_t i = 0; i < approximation.points.size(); ++i)
   {
-    typename InputImageType::IndexType index;
-    for (unsigned int d = 0; d < 3; ++d)
-    {
-      index[d] = start[d] + approximation.points[i][d];
-    }
-    typename InputImageType::PointType physical;
-    input->TransformIndexToPhysicalPoint(index, physical);
     typename OutputMeshType::PointType p;
-    p.CastFrom(physical);
+    p.CastFrom(GridPointToPhysicalPoint(input, region, approximation.points[i]));
     points->SetElement(i, p);
     pointData->SetElement(i, static_cast<OutputPixelType>(approximation.values[i]));
   }
@@ -245,6 +123,9 @@ DelaunayApproximationImageToMeshFilter<TInputImage, TOutputMesh>::GenerateData()
     }
     mesh->SetCell(c, cell);
   }
+  // The whole mesh is generated: mark it buffered, so that the pipeline does not run the filter again
+  // for each consumer that updates after it.
+  mesh->SetBufferedRegion(mesh->GetRequestedRegion());
 }
 
 template <typename TInputImage, typename TOutputMesh>
@@ -260,6 +141,7 @@ DelaunayApproximationImageToMeshFilter<TInputImage, TOutputMesh>::PrintSelf(std:
   os << indent << "QuantizationStep: " << m_QuantizationStep << std::endl;
   os << indent << "QuantizationOrigin: " << m_QuantizationOrigin << std::endl;
   os << indent << "BitsPerVoxel: " << m_BitsPerVoxel << std::endl;
+  os << indent << "PSNR: " << m_PSNR << std::endl;
   os << indent << "ChosenQuantizationStep: " << m_ChosenQuantizationStep << std::endl;
   os << indent << "SquaredError: " << m_SquaredError << std::endl;
   os << indent << "MeanSquaredError: " << m_MeanSquaredError << std::endl;

@@ -20,7 +20,7 @@
 
 #include "itkTetrahedralMeshToImageFilter.h"
 
-#include "itkDCVGridPoint.h"
+#include "itkDCVImageInformation.h"
 
 #include "dcvRasterizer.h"
 #include "itkCellInterface.h"

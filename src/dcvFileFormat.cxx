@@ -381,6 +381,17 @@ ReadWholeFile(const std::string & path)
   return std::vector<uint8_t>((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
 }
 
+CompressedFile
+ReadCompressedFile(const std::string & path)
+{
+  CompressedFile file;
+  file.name = "'" + path + "'";
+  const std::vector<uint8_t> bytes = ReadWholeFile(path);
+  file.size = bytes.size();
+  ParseFile(bytes, file.name, file.header, file.payload);
+  return file;
+}
+
 void
 WriteFileAtomically(const std::string & path, const std::vector<uint8_t> & bytes)
 {

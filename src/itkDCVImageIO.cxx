@@ -19,10 +19,10 @@
 #include "itkDCVImageIOFactory.h"
 
 #include "dcvCodec.h"
-#include "dcvFileFormat.h"
+#include "itkDCVEncoder.h"
+#include "itkDCVImageInformation.h"
 #include "itkVersion.h"
 
-#include <algorithm>
 #include <fstream>
 #include <mutex>
 
@@ -35,91 +35,159 @@ DCVImageIO::DCVImageIO()
   this->SetNumberOfComponents(1);
   this->SetPixelType(IOPixelEnum::SCALAR);
   this->AddSupportedReadExtension(".dcv");
+  this->AddSupportedWriteExtension(".dcv");
+  m_Options.bitsPerVoxel = 0.125;
+}
+
+void
+DCVImageIO::SetBitsPerVoxel(double bitsPerVoxel)
+{
+  m_Options.bitsPerVoxel = bitsPerVoxel;
+  m_Options.psnr = 0.0;
+  this->Modified();
+}
+
+void
+DCVImageIO::SetPSNR(double psnr)
+{
+  m_Options.psnr = psnr;
+  m_Options.bitsPerVoxel = 0.0;
+  this->Modified();
+}
+
+void
+DCVImageIO::SetNumberOfPoints(SizeValueType numberOfPoints)
+{
+  m_Options.numberOfPoints = numberOfPoints;
+  m_Options.bitsPerVoxel = 0.0;
+  m_Options.psnr = 0.0;
+  this->Modified();
+}
+
+void
+DCVImageIO::SetMode(dcv::Mode mode)
+{
+  m_Options.mode = mode;
+  this->Modified();
+}
+
+void
+DCVImageIO::SetQuantizationStep(double step)
+{
+  m_Options.quantizationStep = step;
+  this->Modified();
+}
+
+void
+DCVImageIO::SetEncoderOptions(const dcv::EncoderOptions & options)
+{
+  m_Options = options;
+  this->Modified();
 }
 
 bool
 DCVImageIO::CanReadFile(const char * fileName)
 {
-  const std::string name(fileName ? fileName : "");
   if (!this->HasSupportedReadExtension(fileName))
   {
     return false;
   }
-  std::ifstream in(name, std::ios::binary);
+  std::ifstream in(fileName, std::ios::binary);
   uint8_t       magic[4] = { 0, 0, 0, 0 };
   in.read(reinterpret_cast<char *>(magic), 4);
   return in.gcount() == 4 && dcv::HasMagic(magic, 4);
 }
 
-namespace
+bool
+DCVImageIO::CanWriteFile(const char * fileName)
 {
-void
-ReadHeader(const std::string & fileName, dcv::FileHeader & header, std::vector<uint8_t> & payload)
-{
-  try
-  {
-    dcv::ParseFile(dcv::ReadWholeFile(fileName), "'" + fileName + "'", header, payload);
-  }
-  catch (const dcv::FormatError & e)
-  {
-    itkGenericExceptionMacro(<< e.what());
-  }
+  return this->HasSupportedWriteExtension(fileName);
 }
-} // namespace
 
 void
 DCVImageIO::ReadImageInformation()
 {
-  dcv::FileHeader      h;
-  std::vector<uint8_t> payload;
-  ReadHeader(m_FileName, h, payload);
-  const int32_t size[3] = { h.size.x, h.size.y, h.size.z };
-  for (unsigned int i = 0; i < 3; ++i)
-  {
-    this->SetDimensions(i, SizeValueType(size[i]));
-    this->SetSpacing(i, h.spacing[i]);
-    this->SetOrigin(i, h.origin[i]);
-    // ITK's IO keeps directions by column: axis i's direction vector.
-    std::vector<double> axis(3);
-    for (unsigned int r = 0; r < 3; ++r)
-    {
-      axis[r] = h.direction[3 * r + i];
-    }
-    this->SetDirection(i, axis);
-  }
-  dcv::VisitPixelType(h.pixelType, [this](auto pixel) {
-    this->SetComponentType(MapPixelType<decltype(pixel)>::CType);
-  });
-}
-
-void
-DCVImageIO::Read(void * buffer)
-{
-  dcv::FileHeader      h;
-  std::vector<uint8_t> payload;
-  ReadHeader(m_FileName, h, payload);
-  dcv::Approximation a;
   try
   {
-    a = dcv::DecodePayload(payload, h.size, h.numberOfPoints, h.quantizationOrigin, h.quantizationStep, "'" + m_FileName + "'");
+    m_File = dcv::ReadCompressedFile(m_FileName);
   }
   catch (const dcv::FormatError & e)
   {
     itkExceptionMacro(<< e.what());
   }
-  dcv::VisitPixelType(h.pixelType, [&](auto pixel) { dcv::Rasterize(a, static_cast<decltype(pixel) *>(buffer)); });
+  CopyDCVGeometry(m_File.header, this);
+  this->SetNumberOfComponents(1);
+  this->SetPixelType(IOPixelEnum::SCALAR);
+  this->SetComponentType(DCVComponentType(m_File.header.pixelType));
 }
 
 void
-DCVImageIO::Write(const void *)
+DCVImageIO::Read(void * buffer)
 {
-  itkExceptionMacro("DCVImageIO does not write: .dcv files are made by the encoder (dcv compress).");
+  if (m_File.name != "'" + m_FileName + "'")
+  {
+    this->ReadImageInformation();
+  }
+  dcv::Approximation a;
+  try
+  {
+    a = dcv::Decode(m_File);
+  }
+  catch (const dcv::FormatError & e)
+  {
+    itkExceptionMacro(<< e.what());
+  }
+  dcv::VisitPixelType(m_File.header.pixelType,
+                      [&](auto pixel) { dcv::Rasterize(a, static_cast<decltype(pixel) *>(buffer)); });
+}
+
+void
+DCVImageIO::Write(const void * buffer)
+{
+  const std::string name = "'" + m_FileName + "'";
+  if (this->GetNumberOfDimensions() != 3 || this->GetNumberOfComponents() != 1)
+  {
+    itkExceptionMacro("Cannot write " << name << ": .dcv holds scalar 3D volumes, not " << this->GetNumberOfDimensions()
+                                      << "D images of " << this->GetNumberOfComponents() << " components.");
+  }
+  dcv::FileHeader geometry;
+  CopyDCVGeometry(this, geometry);
+  const dcv::PixelType type = DCVPixelType(this->GetComponentType(), name);
+  try
+  {
+    dcv::VisitPixelType(type, [&](auto pixel) {
+      // The buffer as an image of its own type, without a copy, for the encoder.
+      using ImageType = Image<decltype(pixel), 3>;
+      auto image = ImageType::New();
+      CopyDCVGeometry(geometry, image.GetPointer());
+      image->SetBufferedRegion(image->GetLargestPossibleRegion());
+      image->GetPixelContainer()->SetImportPointer(
+        static_cast<decltype(pixel) *>(const_cast<void *>(buffer)), image->GetLargestPossibleRegion().GetNumberOfPixels(), false);
+      m_LastResult = DCVEncode(image.GetPointer(), m_Options);
+    });
+    dcv::WriteFileAtomically(m_FileName, m_LastResult.bytes);
+  }
+  catch (const ExceptionObject &)
+  {
+    throw;
+  }
+  catch (const std::exception & e)
+  {
+    itkExceptionMacro("Cannot write " << name << ": " << e.what());
+  }
+  m_LastResult.bytes.clear();
+  m_LastResult.approximation = dcv::Approximation();
 }
 
 void
 DCVImageIO::PrintSelf(std::ostream & os, Indent indent) const
 {
   Superclass::PrintSelf(os, indent);
+  os << indent << "BitsPerVoxel: " << m_Options.bitsPerVoxel << std::endl;
+  os << indent << "PSNR: " << m_Options.psnr << std::endl;
+  os << indent << "NumberOfPoints: " << m_Options.numberOfPoints << std::endl;
+  os << indent << "Mode: " << m_Options.mode << std::endl;
+  os << indent << "QuantizationStep: " << m_Options.quantizationStep << std::endl;
 }
 
 DCVImageIOFactory::DCVImageIOFactory()
@@ -137,7 +205,7 @@ DCVImageIOFactory::GetITKSourceVersion() const
 const char *
 DCVImageIOFactory::GetDescription() const
 {
-  return "DCV ImageIO Factory, reads .dcv files (DelaunayCompression)";
+  return "DCV ImageIO Factory, reads and writes .dcv files (DelaunayCompression)";
 }
 
 void

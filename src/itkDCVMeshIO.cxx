@@ -20,9 +20,11 @@
 
 #include "dcvApproximation.h"
 #include "dcvCodec.h"
-#include "itkDCVGridPoint.h"
+#include "itkDCVImageInformation.h"
+#include "itkImage.h"
 #include "itkVersion.h"
 
+#include <algorithm>
 #include <cmath>
 #include <cstring>
 #include <fstream>
@@ -39,34 +41,15 @@ HasDcvExtension(const char * fileName)
   return name.size() > 4 && name.compare(name.size() - 4, 4, ".dcv") == 0;
 }
 
-/** Copies n values of a buffer of the given component type into doubles. */
+/** Copies n values of a buffer of one of the .dcv pixel types into doubles. */
 void
-ToDouble(const void * buffer, IOComponentEnum type, std::size_t n, std::vector<double> & out)
+ToDouble(const void * buffer, IOComponentEnum type, std::size_t n, std::vector<double> & out, const std::string & name)
 {
   out.resize(n);
-  switch (type)
-  {
-#define DCV_CASE(E, T)                                                                                                 \
-  case IOComponentEnum::E:                                                                                             \
-    for (std::size_t i = 0; i < n; ++i)                                                                                \
-      out[i] = double(static_cast<const T *>(buffer)[i]);                                                              \
-    return;
-    DCV_CASE(UCHAR, unsigned char)
-    DCV_CASE(CHAR, signed char)
-    DCV_CASE(USHORT, unsigned short)
-    DCV_CASE(SHORT, short)
-    DCV_CASE(UINT, unsigned int)
-    DCV_CASE(INT, int)
-    DCV_CASE(ULONG, unsigned long)
-    DCV_CASE(LONG, long)
-    DCV_CASE(ULONGLONG, unsigned long long)
-    DCV_CASE(LONGLONG, long long)
-    DCV_CASE(FLOAT, float)
-    DCV_CASE(DOUBLE, double)
-#undef DCV_CASE
-    default:
-      itkGenericExceptionMacro("DCVMeshIO: unsupported component type " << type);
-  }
+  dcv::VisitPixelType(DCVPixelType(type, name), [&](auto pixel) {
+    const auto * values = static_cast<const decltype(pixel) *>(buffer);
+    std::copy(values, values + n, out.begin());
+  });
 }
 } // namespace
 
@@ -99,35 +82,25 @@ DCVMeshIO::CanWriteFile(const char * fileName)
 void
 DCVMeshIO::Decode()
 {
-  std::vector<uint8_t> payload;
-  dcv::Approximation   a;
+  dcv::Approximation a;
   try
   {
-    const std::string name = "'" + m_FileName + "'";
-    dcv::ParseFile(dcv::ReadWholeFile(m_FileName), name, m_Header, payload);
-    a = dcv::DecodePayload(payload,
-                           m_Header.size,
-                           m_Header.numberOfPoints,
-                           m_Header.quantizationOrigin,
-                           m_Header.quantizationStep,
-                           name);
+    const dcv::CompressedFile file = dcv::ReadCompressedFile(m_FileName);
+    m_Header = file.header;
+    a = dcv::Decode(file);
   }
   catch (const dcv::FormatError & e)
   {
     itkExceptionMacro(<< e.what());
   }
+  auto grid = ImageBase<3>::New();
+  CopyDCVGeometry(m_Header, grid.GetPointer());
   m_Points.clear();
-  for (const auto & p : a.points)
+  m_Points.reserve(3 * a.points.size());
+  for (const auto & g : a.points)
   {
-    for (unsigned int r = 0; r < 3; ++r)
-    {
-      double x = m_Header.origin[r];
-      for (unsigned int c = 0; c < 3; ++c)
-      {
-        x += m_Header.direction[3 * r + c] * m_Header.spacing[c] * p[c];
-      }
-      m_Points.push_back(x);
-    }
+    const auto p = GridPointToPhysicalPoint(grid.GetPointer(), grid->GetLargestPossibleRegion(), g);
+    m_Points.insert(m_Points.end(), p.Begin(), p.End());
   }
   m_Values = a.values;
   m_Cells.clear();
@@ -181,7 +154,7 @@ DCVMeshIO::ReadPointData(void * buffer)
 void
 DCVMeshIO::WritePoints(void * buffer)
 {
-  ToDouble(buffer, this->GetPointComponentType(), this->GetNumberOfPoints() * 3, m_Points);
+  ToDouble(buffer, this->GetPointComponentType(), this->GetNumberOfPoints() * 3, m_Points, "'" + m_FileName + "'");
 }
 
 void
@@ -191,7 +164,7 @@ DCVMeshIO::WritePointData(void * buffer)
   {
     itkExceptionMacro("Cannot write '" << m_FileName << "': .dcv point data must be scalar values.");
   }
-  ToDouble(buffer, this->GetPointPixelComponentType(), this->GetNumberOfPointPixels(), m_Values);
+  ToDouble(buffer, this->GetPointPixelComponentType(), this->GetNumberOfPointPixels(), m_Values, "'" + m_FileName + "'");
 }
 
 void
@@ -210,7 +183,9 @@ DCVMeshIO::Write()
   }
   if (!(m_QuantizationStep > 0.0))
   {
-    itkExceptionMacro("Cannot write " << name << ": QuantizationStep must be positive.");
+    itkExceptionMacro("Cannot write " << name
+                                      << ": set the QuantizationStep (and QuantizationOrigin) of the values, as the "
+                                         "approximation filter reports them (GetChosenQuantizationStep).");
   }
   const auto         region = m_ReferenceImage->GetLargestPossibleRegion();
   dcv::Approximation a;
@@ -233,20 +208,9 @@ DCVMeshIO::Write()
     a.values.push_back(m_QuantizationOrigin + k * m_QuantizationStep);
   }
   dcv::FileHeader h;
-  h.pixelType = m_DecodedPixelType;
-  h.mode = 255; // not made by the encoder
-  h.size = a.grid;
-  ImageBase<3>::PointType first;
-  m_ReferenceImage->TransformIndexToPhysicalPoint(region.GetIndex(), first);
-  for (unsigned int i = 0; i < 3; ++i)
-  {
-    h.spacing[i] = m_ReferenceImage->GetSpacing()[i];
-    h.origin[i] = first[i];
-    for (unsigned int j = 0; j < 3; ++j)
-    {
-      h.direction[3 * i + j] = m_ReferenceImage->GetDirection()(i, j);
-    }
-  }
+  CopyDCVGeometry(m_ReferenceImage, region, h);
+  h.pixelType = this->GetDecodedPixelType();
+  h.mode = dcv::FileHeader::UnknownMode;
   h.quantizationOrigin = m_QuantizationOrigin;
   h.quantizationStep = m_QuantizationStep;
   h.numberOfPoints = uint32_t(n);
@@ -261,6 +225,27 @@ DCVMeshIO::Write()
   }
 }
 
+dcv::PixelType
+DCVMeshIO::GetDecodedPixelType() const
+{
+  if (m_DecodedPixelTypeSet || !m_ReferenceImage)
+  {
+    return m_DecodedPixelType;
+  }
+  dcv::PixelType type = m_DecodedPixelType;
+  for (auto candidate : { dcv::PixelType::UInt8, dcv::PixelType::Int8, dcv::PixelType::UInt16, dcv::PixelType::Int16,
+                          dcv::PixelType::UInt32, dcv::PixelType::Int32, dcv::PixelType::Float32, dcv::PixelType::Float64 })
+  {
+    dcv::VisitPixelType(candidate, [&](auto pixel) {
+      if (dynamic_cast<const Image<decltype(pixel), 3> *>(m_ReferenceImage.GetPointer()))
+      {
+        type = candidate;
+      }
+    });
+  }
+  return type;
+}
+
 void
 DCVMeshIO::PrintSelf(std::ostream & os, Indent indent) const
 {
@@ -268,7 +253,7 @@ DCVMeshIO::PrintSelf(std::ostream & os, Indent indent) const
   os << indent << "ReferenceImage: " << m_ReferenceImage.GetPointer() << std::endl;
   os << indent << "QuantizationOrigin: " << m_QuantizationOrigin << std::endl;
   os << indent << "QuantizationStep: " << m_QuantizationStep << std::endl;
-  os << indent << "DecodedPixelType: " << dcv::PixelTypeName(m_DecodedPixelType) << std::endl;
+  os << indent << "DecodedPixelType: " << dcv::PixelTypeName(this->GetDecodedPixelType()) << std::endl;
 }
 
 DCVMeshIOFactory::DCVMeshIOFactory()

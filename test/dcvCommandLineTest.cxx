@@ -24,33 +24,13 @@
 #include <cmath>
 #include <fstream>
 #include <tuple>
-#include <sys/wait.h>
 
 namespace
 {
 namespace fs = std::filesystem;
 
-struct Result
-{
-  int         status;
-  std::string output; // stdout and stderr
-};
-
-Result
-RunDcv(const std::string & arguments)
-{
-  const std::string command = std::string(DCV_EXECUTABLE) + " " + arguments + " 2>&1";
-  FILE *            pipe = ::popen(command.c_str(), "r");
-  Result            r{ -1, "" };
-  if (!pipe)
-    return r;
-  char buffer[4096];
-  while (std::size_t n = std::fread(buffer, 1, sizeof(buffer), pipe))
-    r.output.append(buffer, n);
-  const int status = ::pclose(pipe);
-  r.status = WIFEXITED(status) ? WEXITSTATUS(status) : 128 + WTERMSIG(status);
-  return r;
-}
+using dcv::test::Result;
+using dcv::test::RunDcv;
 
 class CommandLine : public ::testing::Test
 {
@@ -196,7 +176,7 @@ TEST_F(CommandLine, VectorPixels)
 
 TEST_F(CommandLine, TooFewPoints)
 {
-  ExpectRefused(WriteScalar<3>("volume.nrrd", 8), { "--points must be at least 8" }, " --points 7");
+  ExpectRefused(WriteScalar<3>("volume.nrrd", 8), { "NumberOfPoints (--points) must be at least 8" }, " --points 7");
   EXPECT_FALSE(fs::exists(Path("out.nrrd")));
 }
 
@@ -204,9 +184,9 @@ TEST_F(CommandLine, BadMethodParameters)
 {
   const std::string input = WriteScalar<3>("volume.nrrd", 8);
   ExpectRefused(input, { "--mode", "unknown mode 'fast'", "silva, dec, dec+com or best" }, " --mode fast");
-  ExpectRefused(input, { "--alpha must be positive" }, " --alpha 0");
-  ExpectRefused(input, { "--domain-sigma must be positive" }, " --domain-sigma -1");
-  ExpectRefused(input, { "--range-sigma must be positive, or 0" }, " --range-sigma -2");
+  ExpectRefused(input, { "Alpha (--alpha) must be positive" }, " --alpha 0");
+  ExpectRefused(input, { "DomainSigma (--domain-sigma) must be positive" }, " --domain-sigma -1");
+  ExpectRefused(input, { "RangeSigma (--range-sigma) must be positive, or 0" }, " --range-sigma -2");
   EXPECT_FALSE(fs::exists(Path("out.nrrd")));
 }
 
@@ -363,6 +343,70 @@ TEST_F(CommandLine, ApproximatesRealCTWithItsPixelType)
   reader->Update();
   EXPECT_EQ(reader->GetImageIO()->GetComponentType(), itk::IOComponentEnum::SHORT);
   EXPECT_EQ(reader->GetOutput()->GetLargestPossibleRegion().GetSize(), (itk::Size<3>{ { 64, 64, 93 } }));
+}
+
+TEST_F(CommandLine, UsageErrorsExitWithStatusOne)
+{
+  EXPECT_EQ(RunDcv("--help").status, 0);
+  EXPECT_EQ(RunDcv("--version").status, 0);
+  EXPECT_EQ(RunDcv("").status, 1);
+  EXPECT_EQ(RunDcv("compress").status, 1);
+  EXPECT_EQ(RunDcv("compress a.nrrd b.dcv --bogus").status, 1);
+  EXPECT_EQ(RunDcv("frobnicate").status, 1);
+}
+
+TEST_F(CommandLine, OneTargetAtATime)
+{
+  const std::string phantom = Path("phantom.nrrd");
+  ASSERT_EQ(RunDcv("phantom " + phantom + " --size 16").status, 0);
+  for (const std::string flags : { "--bpv 0.1 --points 50", "--bpv 0.1 --psnr 30", "--psnr 30 -n 50" })
+  {
+    const Result r = RunDcv("compress " + phantom + " " + Path("x.dcv") + " " + flags);
+    EXPECT_EQ(r.status, 1) << flags;
+    EXPECT_NE(r.output.find("excludes"), std::string::npos) << r.output;
+    EXPECT_FALSE(fs::exists(Path("x.dcv")));
+  }
+}
+
+TEST_F(CommandLine, CompressToAPSNRTarget)
+{
+  const std::string phantom = Path("phantom.nrrd");
+  ASSERT_EQ(RunDcv("phantom " + phantom + " --size 40").status, 0);
+  const Result r = RunDcv("compress " + phantom + " " + Path("q.dcv") + " --psnr 26");
+  ASSERT_EQ(r.status, 0) << r.output;
+  const double printed = std::stod(r.output.substr(r.output.find("PSNR: ") + 6));
+  EXPECT_GE(printed, 26.0);
+  EXPECT_LT(printed, 27.0);
+}
+
+TEST_F(CommandLine, DecompressWritesCompressedVolumes)
+{
+  const std::string phantom = Path("phantom.nrrd");
+  ASSERT_EQ(RunDcv("phantom " + phantom + " --size 40").status, 0);
+  EXPECT_NE(dcv::test::FileBytes(phantom).find("encoding: gzip"), std::string::npos);
+  ASSERT_EQ(RunDcv("compress " + phantom + " " + Path("p.dcv") + " --bpv 0.1").status, 0);
+  ASSERT_EQ(RunDcv("decompress " + Path("p.dcv") + " " + Path("d.nrrd")).status, 0);
+  EXPECT_NE(dcv::test::FileBytes(Path("d.nrrd")).find("encoding: gzip"), std::string::npos);
+  EXPECT_LT(fs::file_size(Path("d.nrrd")), 40u * 40 * 40 / 2);
+}
+
+TEST_F(CommandLine, AFailedWriteLeavesNoFile)
+{
+  const std::string phantom = Path("phantom.nrrd");
+  ASSERT_EQ(RunDcv("phantom " + phantom + " --size 16").status, 0);
+  ASSERT_EQ(RunDcv("compress " + phantom + " " + Path("p.dcv") + " -n 40").status, 0);
+  // PNG holds 2D images: ITK accepts the name and fails while writing the 3D volume.
+  const Result r = RunDcv("decompress " + Path("p.dcv") + " " + Path("out.png"));
+  EXPECT_EQ(r.status, 1) << r.output;
+  EXPECT_NE(r.output.find("cannot write"), std::string::npos) << r.output;
+  EXPECT_NE(r.output.find("out.png"), std::string::npos) << r.output;
+  std::size_t files = 0;
+  for (const auto & entry : fs::directory_iterator(m_Directory))
+  {
+    ++files;
+    EXPECT_NE(entry.path().filename().string().substr(0, 5), ".dcv-") << entry.path();
+  }
+  EXPECT_EQ(files, 2u); // phantom.nrrd and p.dcv
 }
 
 } // namespace

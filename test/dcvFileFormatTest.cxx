@@ -19,6 +19,7 @@
 #include "dcvCodec.h"
 #include "dcvFileFormat.h"
 #include "dcvPhantom.h"
+#include "dcvRateControl.h"
 #include "dcvRefinementEngine.h"
 #include "dcvTestUtilities.h"
 

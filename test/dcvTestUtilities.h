@@ -25,11 +25,15 @@
 #include <gtest/gtest.h>
 
 #include <algorithm>
+#include <cstdio>
 #include <cstdlib>
 #include <filesystem>
+#include <fstream>
 #include <numeric>
 #include <random>
 #include <string>
+#include <sys/wait.h>
+#include <unistd.h>
 
 namespace dcv::test
 {
@@ -79,6 +83,61 @@ ReadVolume(const std::string & name)
   const bool eightBit = reader->GetImageIO()->GetComponentSize() == 1;
   v.peak = PSNRPeak(*range.first, *range.second, eightBit);
   return v;
+}
+
+/** What a run of the dcv tool gave. */
+struct Result
+{
+  int         status;
+  std::string output; // stdout and stderr
+};
+
+/** Runs `dcv ARGUMENTS` (the tool built with the tests). */
+inline Result
+RunDcv(const std::string & arguments)
+{
+  const std::string command = std::string(DCV_EXECUTABLE) + " " + arguments + " 2>&1";
+  FILE *            pipe = ::popen(command.c_str(), "r");
+  Result            r{ -1, "" };
+  if (!pipe)
+    return r;
+  char buffer[4096];
+  while (std::size_t n = std::fread(buffer, 1, sizeof(buffer), pipe))
+    r.output.append(buffer, n);
+  const int status = ::pclose(pipe);
+  r.status = WIFEXITED(status) ? WEXITSTATUS(status) : 128 + WTERMSIG(status);
+  return r;
+}
+
+/** A fresh directory for one test, removed with the object. */
+class TemporaryDirectory
+{
+public:
+  TemporaryDirectory()
+    : m_Path(std::filesystem::temp_directory_path() /
+             ("dcv-test-" + std::to_string(::getpid()) + "-" +
+              ::testing::UnitTest::GetInstance()->current_test_info()->name()))
+  {
+    std::filesystem::remove_all(m_Path);
+    std::filesystem::create_directories(m_Path);
+  }
+  ~TemporaryDirectory() { std::filesystem::remove_all(m_Path); }
+  std::string
+  operator/(const std::string & name) const
+  {
+    return (m_Path / name).string();
+  }
+
+private:
+  std::filesystem::path m_Path;
+};
+
+/** The bytes of a file. */
+inline std::string
+FileBytes(const std::string & path)
+{
+  std::ifstream in(path, std::ios::binary);
+  return std::string((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
 }
 
 /** The 8 corners of a grid. */

@@ -99,7 +99,8 @@ TEST(DCVImageIO, RecognisesOnlyDcvFiles)
   auto io = itk::DCVImageIO::New();
   EXPECT_FALSE(io->CanReadFile("volume.nrrd"));
   EXPECT_FALSE(io->CanReadFile("/nonexistent/volume.dcv"));
-  EXPECT_FALSE(io->CanWriteFile("volume.dcv"));
+  EXPECT_TRUE(io->CanWriteFile("volume.dcv"));
+  EXPECT_FALSE(io->CanWriteFile("volume.nrrd"));
 }
 
 } // namespace
@@ -197,13 +198,27 @@ TEST(DCVMeshIO, MeshRoundTripThroughMeshFileWriterAndReader)
     (std::filesystem::temp_directory_path() / ("dcv-mesh-" + std::to_string(::getpid()) + ".dcv")).string();
   auto io = itk::DCVMeshIO::New();
   io->SetReferenceImage(image);
+  EXPECT_EQ(io->GetDecodedPixelType(), dcv::PixelType::UInt8); // the reference image's
   io->SetQuantizationOrigin(approximate->GetQuantizationOrigin());
-  io->SetDecodedPixelType(dcv::PixelType::UInt8);
   auto writer = itk::MeshFileWriter<MeshType>::New();
   writer->SetMeshIO(io);
   writer->SetInput(approximate->GetOutput());
   writer->SetFileName(path);
+  // Without the values' step the writer refuses, and writes nothing.
+  try
+  {
+    writer->Update();
+    FAIL() << "a mesh was written without its quantization step";
+  }
+  catch (const itk::ExceptionObject & e)
+  {
+    EXPECT_NE(std::string(e.GetDescription()).find("QuantizationStep"), std::string::npos) << e.GetDescription();
+  }
+  EXPECT_FALSE(std::filesystem::exists(path));
+  io->SetQuantizationStep(approximate->GetChosenQuantizationStep());
   ASSERT_NO_THROW(writer->Update());
+  EXPECT_EQ(dcv::ReadCompressedFile(path).header.pixelType, dcv::PixelType::UInt8);
+  EXPECT_EQ(dcv::ReadCompressedFile(path).header.mode, dcv::FileHeader::UnknownMode);
 
   auto reader = itk::MeshFileReader<MeshType>::New();
   reader->SetFileName(path);

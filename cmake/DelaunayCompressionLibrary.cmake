@@ -1,0 +1,18 @@
+# What the DelaunayCompression library target needs beyond its sources, the same in the standalone
+# build and in a build inside ITK (included by src/CMakeLists.txt once the target exists).
+# _dcv_private: the link keyword the target's other target_link_libraries calls use.
+
+# Interpolated values must be the same doubles in the encoder and in any decoder: no fused
+# multiply-add contraction of the shared rasterizer arithmetic.
+target_compile_options(DelaunayCompression PUBLIC $<$<CXX_COMPILER_ID:GNU,Clang>:-ffp-contract=off>)
+find_package(CGAL REQUIRED)
+find_package(Eigen3 3.3 REQUIRED NO_MODULE)
+find_package(ZLIB REQUIRED) # crc32 of the .dcv files
+find_package(Threads REQUIRED)
+target_link_libraries(DelaunayCompression ${_dcv_private} CGAL::CGAL Eigen3::Eigen ZLIB::ZLIB Threads::Threads)
+
+# The .dcv image and mesh IO as an ITK plugin: a directory holding it, in ITK_AUTOLOAD_PATH, lets any
+# ITK program read and write .dcv files without linking the module.
+add_library(DelaunayCompressionPlugin MODULE ${PROJECT_SOURCE_DIR}/src/itkDCVPlugin.cxx)
+target_link_libraries(DelaunayCompressionPlugin ${_dcv_private} DelaunayCompression)
+set_target_properties(DelaunayCompressionPlugin PROPERTIES LIBRARY_OUTPUT_DIRECTORY ${PROJECT_BINARY_DIR}/plugin)

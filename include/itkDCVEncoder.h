@@ -1,0 +1,145 @@
+/*=========================================================================
+ *
+ *  Copyright NumFOCUS
+ *
+ *  Licensed under the Apache License, Version 2.0 (the "License");
+ *  you may not use this file except in compliance with the License.
+ *  You may obtain a copy of the License at
+ *
+ *         http://www.apache.org/licenses/LICENSE-2.0.txt
+ *
+ *  Unless required by applicable law or agreed to in writing, software
+ *  distributed under the License is distributed on an "AS IS" BASIS,
+ *  WITHOUT WARRANTIES OR CONDITIONS OF ANY KIND, either express or implied.
+ *  See the License for the specific language governing permissions and
+ *  limitations under the License.
+ *
+ *=========================================================================*/
+#ifndef itkDCVEncoder_h
+#define itkDCVEncoder_h
+
+#include "dcvEncoder.h"
+#include "itkBilateralImageFilter.h"
+#include "itkDCVImageInformation.h"
+#include "itkImage.h"
+#include "itkImageRegionConstIterator.h"
+
+#include <chrono>
+#include <vector>
+
+/** \file itkDCVEncoder.h
+ * The encoder (dcvEncoder.h) for any 3D scalar itk::Image: DCVEncode() makes the .dcv bytes,
+ * DCVApproximate() the approximation alone. Used by `dcv`, DCVImageIO (ImageFileWriter) and
+ * DelaunayApproximationImageToMeshFilter.
+ * \ingroup DelaunayCompression
+ */
+namespace itk
+{
+
+/** The encoder's view of an image: its voxels as floats, pixel type and geometry, and I*. */
+template <typename TImage>
+class DCVEncoderInput
+{
+public:
+  static_assert(TImage::ImageDimension == 3, "the encoder takes 3D images");
+  using PixelType = typename TImage::PixelType;
+
+  DCVEncoderInput(const TImage * image, const dcv::EncoderOptions & options)
+  {
+    dcv::CheckOptions(options);
+    const auto region = image->GetBufferedRegion();
+    CopyDCVGeometry(image, region, m_Input.header);
+    dcv::CheckGrid(m_Input.header.size);
+    m_Voxels.reserve(region.GetNumberOfPixels());
+    for (ImageRegionConstIterator<TImage> it(image, region); !it.IsAtEnd(); ++it)
+    {
+      m_Voxels.push_back(static_cast<float>(it.Get()));
+    }
+    m_Input.voxels = m_Voxels.data();
+    m_Input.header.pixelType = dcv::PixelTypeOf<PixelType>();
+    if (dcv::UsesSmoothedImage(options.mode))
+    {
+      // I*: the bilateral filter of I (combined image approach), with sigmas in voxels.
+      using SmoothedImageType = Image<float, 3>;
+      using BilateralType = BilateralImageFilter<TImage, SmoothedImageType>;
+      auto bilateral = BilateralType::New();
+      bilateral->SetInput(image);
+      typename BilateralType::ArrayType sigmas;
+      for (unsigned int d = 0; d < 3; ++d)
+      {
+        sigmas[d] = options.domainSigma * image->GetSpacing()[d]; // the filter measures physical distances
+      }
+      bilateral->SetDomainSigma(sigmas);
+      bilateral->SetRangeSigma(dcv::RangeSigma(options, dcv::PSNRPeak(m_Input)));
+      // A kernel of 1.5 sigma instead of ITK's 2.5 (radius 2 instead of 3 at sigma 1): measured 2.3x
+      // faster on norm-256 (12.5 s instead of 28-31 s) for the same I* (PSNR 47.54 vs 47.45 dB).
+      bilateral->SetDomainMu(1.5);
+      const auto start = std::chrono::steady_clock::now();
+      bilateral->Update();
+      m_SmoothingSeconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+      m_Smoothed = bilateral->GetOutput();
+      m_Input.smoothed = m_Smoothed->GetBufferPointer();
+    }
+  }
+
+  const dcv::EncoderInput &
+  Get() const
+  {
+    return m_Input;
+  }
+  double
+  GetSmoothingSeconds() const
+  {
+    return m_SmoothingSeconds;
+  }
+
+private:
+  std::vector<float>          m_Voxels;
+  Image<float, 3>::Pointer    m_Smoothed;
+  dcv::EncoderInput           m_Input;
+  double                      m_SmoothingSeconds{ 0.0 };
+};
+
+namespace DCVEncoderDetail
+{
+/** Runs `call` (dcv::Encode or dcv::Approximate) on the image, with progress spread over the
+ * smoothing (the first 20% when the mode smooths) and the method. */
+template <typename TImage, typename TCall>
+dcv::EncoderResult
+Run(const TImage * image, const dcv::EncoderOptions & options, TCall call)
+{
+  const auto                start = std::chrono::steady_clock::now();
+  const DCVEncoderInput<TImage> input(image, options);
+  dcv::EncoderOptions       o = options;
+  const double              engineStart = input.Get().smoothed ? 0.2 : 0.0;
+  if (options.progress)
+  {
+    options.progress(engineStart);
+    o.progress = [&options, engineStart](double f) { options.progress(engineStart + (1.0 - engineStart) * f); };
+  }
+  dcv::EncoderResult r = call(input.Get(), o);
+  r.timings.smoothing = input.GetSmoothingSeconds();
+  r.timings.total = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+  return r;
+}
+} // namespace DCVEncoderDetail
+
+/** Encodes an image into the bytes of a .dcv file (dcv::Encode). */
+template <typename TImage>
+dcv::EncoderResult
+DCVEncode(const TImage * image, const dcv::EncoderOptions & options)
+{
+  return DCVEncoderDetail::Run(image, options, &dcv::Encode);
+}
+
+/** Approximates an image without making a file (dcv::Approximate). */
+template <typename TImage>
+dcv::EncoderResult
+DCVApproximate(const TImage * image, const dcv::EncoderOptions & options)
+{
+  return DCVEncoderDetail::Run(image, options, &dcv::Approximate);
+}
+
+} // namespace itk
+
+#endif

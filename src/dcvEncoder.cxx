@@ -1,0 +1,250 @@
+/*=========================================================================
+ *
+ *  Copyright NumFOCUS
+ *
+ *  Licensed under the Apache License, Version 2.0 (the "License");
+ *  you may not use this file except in compliance with the License.
+ *  You may obtain a copy of the License at
+ *
+ *         http://www.apache.org/licenses/LICENSE-2.0.txt
+ *
+ *  Unless required by applicable law or agreed to in writing, software
+ *  distributed under the License is distributed on an "AS IS" BASIS,
+ *  WITHOUT WARRANTIES OR CONDITIONS OF ANY KIND, either express or implied.
+ *  See the License for the specific language governing permissions and
+ *  limitations under the License.
+ *
+ *=========================================================================*/
+#include "dcvEncoder.h"
+#include "dcvCodec.h"
+#include "dcvRateControl.h"
+
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+#include <limits>
+#include <stdexcept>
+#include <string>
+
+namespace dcv
+{
+namespace
+{
+std::string
+Number(double v)
+{
+  std::string s = std::to_string(v);
+  s.erase(s.find_last_not_of('0') + 1);
+  if (!s.empty() && s.back() == '.')
+    s.pop_back();
+  return s;
+}
+
+/** The range of values of a pixel type. */
+std::pair<double, double>
+ValueRange(PixelType type)
+{
+  std::pair<double, double> range;
+  VisitPixelType(type, [&range](auto pixel) {
+    using T = decltype(pixel);
+    range = { double(std::numeric_limits<T>::lowest()), double(std::numeric_limits<T>::max()) };
+  });
+  return range;
+}
+
+bool
+EightBit(PixelType type)
+{
+  return type == PixelType::UInt8 || type == PixelType::Int8;
+}
+} // namespace
+
+void
+CheckOptions(const EncoderOptions & o)
+{
+  // Each option is named as the ITK classes call it and as the dcv tool spells it.
+  auto refuse = [](const std::string & what, const std::string & rule, double v) {
+    throw std::invalid_argument(what + " must be " + rule + ", got " + Number(v));
+  };
+  if (!(o.bitsPerVoxel >= 0.0) || !std::isfinite(o.bitsPerVoxel))
+    refuse("BitsPerVoxel (--bpv)", "positive, or 0: off", o.bitsPerVoxel);
+  if (!(o.psnr >= 0.0) || !std::isfinite(o.psnr))
+    refuse("PSNR (--psnr)", "positive, or 0: off", o.psnr);
+  if (o.bitsPerVoxel > 0.0 && o.psnr > 0.0)
+    throw std::invalid_argument("give BitsPerVoxel (--bpv) or PSNR (--psnr), not both");
+  if (o.numberOfPoints < 8)
+    refuse("NumberOfPoints (--points)", "at least 8 (the corners of the volume)", double(o.numberOfPoints));
+  if (!(o.quantizationStep >= 0.0) || !std::isfinite(o.quantizationStep))
+    refuse("QuantizationStep (--step)", "positive, or 0: automatic", o.quantizationStep);
+  if (!(o.domainSigma > 0.0) || !std::isfinite(o.domainSigma))
+    refuse("DomainSigma (--domain-sigma)", "positive", o.domainSigma);
+  if (!(o.rangeSigma >= 0.0) || !std::isfinite(o.rangeSigma))
+    refuse("RangeSigma (--range-sigma)", "positive, or 0: automatic", o.rangeSigma);
+  if (!(o.alpha > 0.0) || !std::isfinite(o.alpha))
+    refuse("Alpha (--alpha)", "positive", o.alpha);
+}
+
+void
+CheckGrid(const GridSize & grid)
+{
+  for (int32_t n : { grid.x, grid.y, grid.z })
+  {
+    if (n < 2 || n > MaximumGridExtent)
+    {
+      throw std::invalid_argument("the volume is " + std::to_string(grid.x) + "x" + std::to_string(grid.y) + "x" +
+                                  std::to_string(grid.z) + " voxels; each axis needs 2 to " +
+                                  std::to_string(MaximumGridExtent) + " voxels");
+    }
+  }
+}
+
+double
+PSNRPeak(const EncoderInput & input)
+{
+  const auto range = std::minmax_element(input.voxels, input.voxels + input.header.size.NumberOfVoxels());
+  return PSNRPeak(*range.first, *range.second, EightBit(input.header.pixelType));
+}
+
+double
+DecodedSquaredError(const Approximation & a, PixelType type, const float * voxels)
+{
+  double error = 0.0;
+  VisitPixelType(type, [&](auto pixel) {
+    std::vector<decltype(pixel)> decoded(a.grid.NumberOfVoxels());
+    Rasterize(a, decoded.data());
+    error = SquaredError(voxels, decoded.data(), decoded.size());
+  });
+  return error;
+}
+
+namespace
+{
+/** Approximate() and, with `coded`, the payload as rate control measured it (or coded once here). */
+EncoderResult
+Run(const EncoderInput & input, const EncoderOptions & o, bool coded, std::vector<uint8_t> & payload)
+{
+  const auto start = std::chrono::steady_clock::now();
+  CheckOptions(o);
+  const GridSize & grid = input.header.size;
+  CheckGrid(grid);
+  if (input.voxels == nullptr || (UsesSmoothedImage(o.mode) && input.smoothed == nullptr))
+  {
+    throw std::invalid_argument("the encoder needs the voxels, and I* in modes that use it");
+  }
+  const uint64_t voxels = grid.NumberOfVoxels();
+  const auto     range = std::minmax_element(input.voxels, input.voxels + voxels);
+  const bool     integer = IsInteger(input.header.pixelType);
+
+  RefinementParameters parameters = ParametersForMode(o.mode);
+  parameters.alpha = o.alpha;
+  std::tie(parameters.valueMin, parameters.valueMax) = ValueRange(input.header.pixelType);
+  parameters.peak = PSNRPeak(*range.first, *range.second, EightBit(input.header.pixelType));
+  parameters.smoothed = UsesSmoothedImage(o.mode) ? input.smoothed : nullptr;
+  parameters.quantizationOrigin = double(*range.first);
+  const double targetError =
+    o.psnr > 0.0 ? double(voxels) * parameters.peak * parameters.peak / std::pow(10.0, o.psnr / 10.0) : 0.0;
+  // The step: given; chosen by rate control (bit budget); bounded by the target (quality); or the
+  // default step when the file is coded at a point count.
+  const bool automaticStep = o.bitsPerVoxel > 0.0 && o.quantizationStep == 0.0;
+  if (o.quantizationStep > 0.0)
+    parameters.quantizationStep = o.quantizationStep;
+  else if (o.psnr > 0.0)
+    parameters.quantizationStep = QualityQuantizationStep(parameters.peak, integer, targetError, double(voxels));
+  else if (o.bitsPerVoxel > 0.0 || coded)
+    parameters.quantizationStep = DefaultQuantizationStep(parameters.peak, integer);
+
+  EncoderResult r;
+  r.header = input.header;
+  r.header.mode = uint8_t(o.mode);
+  r.header.metadata = o.metadata;
+  r.header.quantizationOrigin = parameters.quantizationOrigin;
+  r.quantizationStep = parameters.quantizationStep;
+  RefinementEngine engine(input.voxels, grid, parameters);
+  if (o.bitsPerVoxel > 0.0)
+  {
+    // The file is the payload plus a header that depends on the geometry and the metadata only.
+    const double fileBytes = std::floor(o.bitsPerVoxel * double(voxels) / 8.0);
+    const double headerBytes = double(SerializeFile(r.header, {}).size());
+    try
+    {
+      BudgetResult b = ApproximateToBudget(engine,
+                                           std::size_t(std::max(0.0, fileBytes - headerBytes)),
+                                           parameters.quantizationOrigin,
+                                           automaticStep ? RateControl::StepMultiples() : std::vector<double>{ 1.0 },
+                                           o.progress);
+      r.quantizationStep = b.step;
+      r.adjustments = b.adjustments;
+      payload = std::move(b.payload);
+    }
+    catch (const std::length_error & e)
+    {
+      throw std::length_error(Number(o.bitsPerVoxel) + " bits per voxel allow a .dcv file of " + Number(fileBytes) +
+                              " bytes, " + Number(headerBytes) + " of them header: too few (" + e.what() + ")");
+    }
+  }
+  else if (o.psnr > 0.0)
+  {
+    try
+    {
+      BudgetResult b = ApproximateToQuality(
+        engine,
+        targetError,
+        parameters.quantizationOrigin,
+        [&](const RefinementEngine & e) {
+          return DecodedSquaredError(e.GetApproximation(), input.header.pixelType, input.voxels);
+        },
+        o.progress);
+      r.adjustments = b.adjustments;
+      payload = std::move(b.payload);
+    }
+    catch (const std::range_error & e)
+    {
+      throw std::range_error("a PSNR of " + Number(o.psnr) + " dB cannot be reached: " + e.what());
+    }
+  }
+  else
+  {
+    engine.Approximate(o.numberOfPoints, o.progress);
+  }
+  r.approximation = engine.GetApproximation();
+  if (coded && payload.empty())
+  {
+    payload = EncodePayload(r.approximation, parameters.quantizationOrigin, r.quantizationStep);
+  }
+  r.header.quantizationStep = r.quantizationStep > 0.0 ? r.quantizationStep : 1.0;
+  r.header.numberOfPoints = uint32_t(r.approximation.points.size());
+  r.squaredError = engine.GetSquaredError();
+  r.smoothedPSNR = engine.GetSmoothedPSNR();
+  r.timings.refinement = engine.GetTimings().refinement;
+  r.timings.decimation = engine.GetTimings().decimation;
+  r.timings.leastSquares = engine.GetTimings().leastSquares;
+  r.timings.total = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+  return r;
+}
+} // namespace
+
+EncoderResult
+Approximate(const EncoderInput & input, const EncoderOptions & options)
+{
+  std::vector<uint8_t> payload;
+  return Run(input, options, false, payload);
+}
+
+EncoderResult
+Encode(const EncoderInput & input, const EncoderOptions & options)
+{
+  const auto           start = std::chrono::steady_clock::now();
+  std::vector<uint8_t> payload;
+  EncoderResult        r = Run(input, options, true, payload);
+  r.bytes = SerializeFile(r.header, payload);
+  const uint64_t voxels = r.header.size.NumberOfVoxels();
+  if (options.bitsPerVoxel > 0.0 && double(r.bytes.size()) > std::floor(options.bitsPerVoxel * double(voxels) / 8.0))
+  {
+    throw std::logic_error("internal error: " + std::to_string(r.bytes.size()) + " bytes exceed the bit budget");
+  }
+  r.psnr = PSNR(DecodedSquaredError(r.approximation, r.header.pixelType, input.voxels), voxels, PSNRPeak(input));
+  r.timings.total = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+  return r;
+}
+
+} // namespace dcv

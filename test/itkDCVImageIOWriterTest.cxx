@@ -1,0 +1,273 @@
+/*=========================================================================
+ *
+ *  Copyright NumFOCUS
+ *
+ *  Licensed under the Apache License, Version 2.0 (the "License");
+ *  you may not use this file except in compliance with the License.
+ *  You may obtain a copy of the License at
+ *
+ *         http://www.apache.org/licenses/LICENSE-2.0.txt
+ *
+ *  Unless required by applicable law or agreed to in writing, software
+ *  distributed under the License is distributed on an "AS IS" BASIS,
+ *  WITHOUT WARRANTIES OR CONDITIONS OF ANY KIND, either express or implied.
+ *  See the License for the specific language governing permissions and
+ *  limitations under the License.
+ *
+ *=========================================================================*/
+// The encoder in the library: itk::ImageFileWriter writes .dcv files byte for byte as `dcv compress`
+// does, the PSNR it reports is the decoder's, a quality target is met, and a pipeline runs the
+// approximation filter once.
+#include "dcvCodec.h"
+#include "dcvPhantom.h"
+#include "dcvTestUtilities.h"
+#include "itkDCVEncoder.h"
+#include "itkDCVImageIO.h"
+#include "itkDelaunayApproximationImageToMeshFilter.h"
+#include "itkTetrahedralMeshToImageFilter.h"
+
+#include "itkCommand.h"
+#include "itkImageFileReader.h"
+#include "itkImageFileWriter.h"
+#include "itkMesh.h"
+
+namespace
+{
+using ImageType = itk::Image<uint8_t, 3>;
+using MeshType = itk::Mesh<double, 3>;
+
+/** A phantom on a rotated, anisotropic grid. */
+ImageType::Pointer
+Phantom(const dcv::GridSize & grid)
+{
+  auto image = ImageType::New();
+  image->SetRegions(ImageType::SizeType{ { itk::SizeValueType(grid.x), itk::SizeValueType(grid.y),
+                                           itk::SizeValueType(grid.z) } });
+  image->Allocate();
+  const auto voxels = dcv::SheppLoganPhantom(grid);
+  std::copy(voxels.begin(), voxels.end(), image->GetBufferPointer());
+  ImageType::SpacingType spacing;
+  spacing[0] = 0.8;
+  spacing[1] = 0.8;
+  spacing[2] = 2.5;
+  image->SetSpacing(spacing);
+  ImageType::PointType origin;
+  origin[0] = -12.5;
+  origin[1] = 4.0;
+  origin[2] = 30.0;
+  image->SetOrigin(origin);
+  ImageType::DirectionType direction;
+  direction.Fill(0.0);
+  direction(0, 1) = 1.0;
+  direction(1, 0) = -1.0;
+  direction(2, 2) = 1.0;
+  image->SetDirection(direction);
+  return image;
+}
+
+template <typename TImage>
+void
+Write(const TImage * image, const std::string & path, itk::ImageIOBase * io = nullptr)
+{
+  auto writer = itk::ImageFileWriter<TImage>::New();
+  writer->SetInput(image);
+  writer->SetFileName(path);
+  if (io)
+    writer->SetImageIO(io);
+  writer->Update();
+}
+
+TEST(DCVImageIO, ImageFileWriterWritesWhatTheToolWrites)
+{
+  const dcv::test::TemporaryDirectory directory;
+  const auto                          image = Phantom({ 36, 32, 20 });
+  const std::string                   input = directory / "phantom.nrrd";
+  Write(image.GetPointer(), input);
+  struct Case
+  {
+    std::string                                 flags;
+    std::function<void(itk::DCVImageIO &)>      set;
+  };
+  const std::vector<Case> cases{
+    { "--bpv 0.125", nullptr }, // the IO's default
+    { "--bpv 0.07", [](itk::DCVImageIO & io) { io.SetBitsPerVoxel(0.07); } },
+    { "--psnr 27", [](itk::DCVImageIO & io) { io.SetPSNR(27.0); } },
+    { "--points 300 -m dec", [](itk::DCVImageIO & io) {
+       io.SetNumberOfPoints(300);
+       io.SetMode(dcv::Mode::Dec);
+     } },
+  };
+  for (const auto & c : cases)
+  {
+    const std::string tool = directory / "tool.dcv";
+    const std::string itk = directory / "itk.dcv";
+    const auto        r = dcv::test::RunDcv("compress " + input + " " + tool + " --force " + c.flags);
+    ASSERT_EQ(r.status, 0) << r.output;
+    auto io = itk::DCVImageIO::New();
+    if (c.set)
+    {
+      c.set(*io);
+      Write(image.GetPointer(), itk, io);
+    }
+    else
+    {
+      Write(image.GetPointer(), itk); // through the factory, with the IO's defaults
+    }
+    EXPECT_EQ(dcv::test::FileBytes(itk), dcv::test::FileBytes(tool)) << c.flags;
+  }
+}
+
+TEST(DCVImageIO, ImageFileWriterWritesRealCTAsTheToolDoes)
+{
+  DCV_REQUIRE_DATA("headsq-ct.nrrd");
+  const dcv::test::TemporaryDirectory directory;
+  const std::string                   input = dcv::test::DataFile("headsq-ct.nrrd");
+  const auto r = dcv::test::RunDcv("compress " + input + " " + (directory / "tool.dcv") + " --bpv 0.03125");
+  ASSERT_EQ(r.status, 0) << r.output;
+  using CTImage = itk::Image<int16_t, 3>;
+  auto io = itk::DCVImageIO::New();
+  io->SetBitsPerVoxel(0.03125);
+  Write(itk::ReadImage<CTImage>(input).GetPointer(), directory / "itk.dcv", io);
+  EXPECT_EQ(dcv::test::FileBytes(directory / "itk.dcv"), dcv::test::FileBytes(directory / "tool.dcv"));
+  EXPECT_EQ(io->GetLastEncoderResult().header.pixelType, dcv::PixelType::Int16);
+}
+
+TEST(DCVImageIO, ReadsTheFileOnce)
+{
+  const dcv::test::TemporaryDirectory directory;
+  const std::string                   path = directory / "phantom.dcv";
+  const auto                          image = Phantom({ 40, 36, 16 });
+  Write(image.GetPointer(), path);
+  auto io = itk::DCVImageIO::New();
+  io->SetFileName(path);
+  io->ReadImageInformation();
+  EXPECT_EQ(io->GetComponentType(), itk::IOComponentEnum::UCHAR);
+  EXPECT_EQ(io->GetDimensions(0), 40u);
+  EXPECT_EQ(io->GetDimensions(2), 16u);
+  EXPECT_EQ(io->GetSpacing(2), 2.5);
+  std::filesystem::rename(path, directory / "moved.dcv"); // Read() needs what was read already
+  std::vector<uint8_t> voxels(40 * 36 * 16);
+  ASSERT_NO_THROW(io->Read(voxels.data()));
+  auto reader = itk::ImageFileReader<ImageType>::New();
+  reader->SetFileName(directory / "moved.dcv");
+  reader->Update();
+  EXPECT_TRUE(std::equal(voxels.begin(), voxels.end(), reader->GetOutput()->GetBufferPointer()));
+  EXPECT_EQ(reader->GetOutput()->GetDirection(), image->GetDirection());
+  EXPECT_EQ(reader->GetOutput()->GetOrigin(), image->GetOrigin());
+}
+
+TEST(DCVImageIO, WriterRefusesWhatADcvFileCannotHoldAndWritesNothing)
+{
+  const dcv::test::TemporaryDirectory directory;
+  const std::string                   path = directory / "out.dcv";
+  auto expectRefused = [&](auto image, const std::string & phrase, itk::ImageIOBase * io = nullptr) {
+    try
+    {
+      Write(image.GetPointer(), path, io);
+      FAIL() << "written: " << phrase;
+    }
+    catch (const itk::ExceptionObject & e)
+    {
+      EXPECT_NE(std::string(e.GetDescription()).find(phrase), std::string::npos) << e.GetDescription();
+      EXPECT_NE(std::string(e.GetDescription()).find("out.dcv"), std::string::npos) << e.GetDescription();
+    }
+    EXPECT_FALSE(std::filesystem::exists(path)) << phrase;
+  };
+  using LongImage = itk::Image<int64_t, 3>;
+  auto wide = LongImage::New();
+  wide->SetRegions(LongImage::SizeType{ { 8, 8, 8 } });
+  wide->Allocate(true);
+  expectRefused(wide, "voxels; .dcv holds 8, 16 and 32-bit integers", itk::DCVImageIO::New());
+  using FlatImage = itk::Image<uint8_t, 2>;
+  auto flat = FlatImage::New();
+  flat->SetRegions(FlatImage::SizeType{ { 8, 8 } });
+  flat->Allocate(true);
+  expectRefused(flat, "scalar 3D volumes", itk::DCVImageIO::New());
+  auto tiny = itk::DCVImageIO::New();
+  tiny->SetBitsPerVoxel(0.01);
+  expectRefused(Phantom({ 20, 20, 20 }), "too few", tiny);
+  auto both = itk::DCVImageIO::New();
+  both->SetQuantizationStep(-1.0);
+  expectRefused(Phantom({ 20, 20, 20 }), "QuantizationStep (--step) must be positive", both);
+}
+
+TEST(Encoder, ReportsThePSNRTheDecoderGives)
+{
+  const auto          image = Phantom({ 32, 30, 24 });
+  dcv::EncoderOptions options;
+  options.bitsPerVoxel = 0.1;
+  const auto r = itk::DCVEncode(image.GetPointer(), options);
+  dcv::CompressedFile file;
+  file.name = "encoded";
+  dcv::ParseFile(r.bytes, file.name, file.header, file.payload);
+  std::vector<uint8_t> decoded(image->GetBufferedRegion().GetNumberOfPixels());
+  dcv::Rasterize(dcv::Decode(file), decoded.data());
+  const double psnr = dcv::PSNR(dcv::SquaredError(image->GetBufferPointer(), decoded.data(), decoded.size()),
+                                decoded.size(),
+                                255.0);
+  EXPECT_EQ(r.psnr, psnr);
+  EXPECT_EQ(r.header.numberOfPoints, file.header.numberOfPoints);
+  EXPECT_LE(r.bytes.size(), std::size_t(0.1 * decoded.size() / 8));
+  EXPECT_GT(r.timings.total, 0.0);
+}
+
+TEST(Encoder, MeetsAPSNRTargetWithFewPoints)
+{
+  const auto image = Phantom({ 40, 36, 28 });
+  for (double target : { 24.0, 30.0 })
+  {
+    dcv::EncoderOptions options;
+    options.psnr = target;
+    const auto r = itk::DCVEncode(image.GetPointer(), options);
+    EXPECT_GE(r.psnr, target);
+    EXPECT_LT(r.psnr, target + 1.0) << "many more points than the target needs";
+    // Fewer points by the point-count path reach less.
+    options.psnr = 0.0;
+    options.numberOfPoints = std::size_t(0.8 * r.header.numberOfPoints);
+    options.quantizationStep = r.header.quantizationStep;
+    EXPECT_LT(itk::DCVEncode(image.GetPointer(), options).psnr, target) << r.header.numberOfPoints;
+  }
+  dcv::EncoderOptions impossible; // values in steps of 64 cannot reach 60 dB
+  impossible.psnr = 60.0;
+  impossible.quantizationStep = 64.0;
+  impossible.mode = dcv::Mode::Silva;
+  EXPECT_THROW(itk::DCVEncode(Phantom({ 8, 8, 8 }).GetPointer(), impossible), std::range_error);
+}
+
+TEST(DelaunayApproximationImageToMeshFilter, RunsOnceForManyConsumers)
+{
+  const dcv::test::TemporaryDirectory directory;
+  const std::string                   input = directory / "phantom.nrrd";
+  Write(Phantom({ 28, 24, 20 }).GetPointer(), input);
+  auto reader = itk::ImageFileReader<ImageType>::New();
+  reader->SetFileName(input);
+  auto filter = itk::DelaunayApproximationImageToMeshFilter<ImageType, MeshType>::New();
+  filter->SetInput(reader->GetOutput());
+  filter->SetNumberOfPoints(200);
+  unsigned starts = 0;
+  auto     counter = itk::CStyleCommand::New();
+  counter->SetClientData(&starts);
+  counter->SetCallback([](itk::Object *, const itk::EventObject &, void * n) { ++*static_cast<unsigned *>(n); });
+  filter->AddObserver(itk::StartEvent(), counter);
+  std::vector<itk::TetrahedralMeshToImageFilter<MeshType, ImageType>::Pointer> consumers;
+  for (int i = 0; i < 3; ++i)
+  {
+    auto rasterize = itk::TetrahedralMeshToImageFilter<MeshType, ImageType>::New();
+    rasterize->SetInput(filter->GetOutput());
+    rasterize->SetReferenceImage(reader->GetOutput());
+    consumers.push_back(rasterize);
+  }
+  for (auto & c : consumers)
+    c->Update();
+  for (auto & c : consumers)
+    c->Update();
+  EXPECT_EQ(starts, 1u);
+  EXPECT_EQ(filter->GetOutput()->GetNumberOfPoints(), 200u);
+  filter->SetNumberOfPoints(150); // a change of parameters runs it again, once
+  for (auto & c : consumers)
+    c->Update();
+  EXPECT_EQ(starts, 2u);
+  EXPECT_EQ(filter->GetOutput()->GetNumberOfPoints(), 150u);
+}
+
+} // namespace

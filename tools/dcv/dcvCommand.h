@@ -1,0 +1,77 @@
+/*=========================================================================
+ *
+ *  Copyright NumFOCUS
+ *
+ *  Licensed under the Apache License, Version 2.0 (the "License");
+ *  you may not use this file except in compliance with the License.
+ *  You may obtain a copy of the License at
+ *
+ *         http://www.apache.org/licenses/LICENSE-2.0.txt
+ *
+ *  Unless required by applicable law or agreed to in writing, software
+ *  distributed under the License is distributed on an "AS IS" BASIS,
+ *  WITHOUT WARRANTIES OR CONDITIONS OF ANY KIND, either express or implied.
+ *  See the License for the specific language governing permissions and
+ *  limitations under the License.
+ *
+ *=========================================================================*/
+#ifndef dcvCommand_h
+#define dcvCommand_h
+
+// The subcommands of dcv. Each lives in a file of its own that registers itself with a
+// RegisterCommand object: adding a subcommand is adding a file.
+#include "dcvEncoder.h"
+#include "dcvTools.h"
+
+#include <CLI/CLI.hpp>
+
+#include <chrono>
+#include <functional>
+#include <string>
+#include <vector>
+
+namespace dcv::tools
+{
+
+/** A subcommand: its name, one line of help, and `setup`, which declares its options on `command`
+ * and returns what runs it once the arguments are parsed. */
+struct Command
+{
+  std::string                                  name;
+  std::string                                  description;
+  std::function<std::function<void()>(CLI::App & command)> setup;
+};
+
+/** Every registered subcommand. */
+std::vector<Command> &
+Commands();
+
+struct RegisterCommand
+{
+  explicit RegisterCommand(Command command) { Commands().push_back(std::move(command)); }
+};
+
+/** The method's options as approximate and compress take them. */
+struct MethodOptions
+{
+  EncoderOptions encoder;
+  std::string    mode{ "best" };
+  bool           force{ false };
+  bool           quiet{ false };
+
+  /** The encoder options with the mode parsed and every value checked (Failure otherwise). */
+  EncoderOptions
+  Checked() const;
+};
+
+/** Declares INPUT, the method's options, --force and --quiet on a command. */
+void
+AddMethodOptions(CLI::App & command, std::string & input, MethodOptions & o);
+
+/** Seconds since `start`. */
+double
+SecondsSince(std::chrono::steady_clock::time_point start);
+
+} // namespace dcv::tools
+
+#endif

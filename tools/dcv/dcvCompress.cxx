@@ -1,0 +1,101 @@
+/*=========================================================================
+ *
+ *  Copyright NumFOCUS
+ *
+ *  Licensed under the Apache License, Version 2.0 (the "License");
+ *  you may not use this file except in compliance with the License.
+ *  You may obtain a copy of the License at
+ *
+ *         http://www.apache.org/licenses/LICENSE-2.0.txt
+ *
+ *  Unless required by applicable law or agreed to in writing, software
+ *  distributed under the License is distributed on an "AS IS" BASIS,
+ *  WITHOUT WARRANTIES OR CONDITIONS OF ANY KIND, either express or implied.
+ *  See the License for the specific language governing permissions and
+ *  limitations under the License.
+ *
+ *=========================================================================*/
+// dcv compress: a volume into a .dcv file, through the library's encoder.
+#include "dcvCommand.h"
+#include "itkDCVEncoder.h"
+
+#include <iostream>
+
+namespace dcv::tools
+{
+namespace
+{
+struct CompressOptions
+{
+  std::string   input;
+  std::string   output;
+  MethodOptions method;
+};
+
+void
+Compress(const CompressOptions & c)
+{
+  const EncoderOptions options = [&c] {
+    EncoderOptions o = c.method.Checked();
+    o.progress = TerminalProgress("compressing", c.method.quiet);
+    return o;
+  }();
+  const PixelType type = ReadVolumePixelType(c.input);
+  CheckOutput(c.output, c.method.force, true);
+  const auto    start = std::chrono::steady_clock::now();
+  EncoderResult r;
+  VisitPixelType(type, [&](auto pixel) {
+    const auto image = ReadVolume<decltype(pixel)>(c.input);
+    try
+    {
+      r = itk::DCVEncode(image.GetPointer(), options);
+    }
+    catch (const itk::ExceptionObject & e)
+    {
+      throw Failure("cannot compress " + Quoted(c.input) + ": " + e.GetDescription());
+    }
+    catch (const std::exception & e)
+    {
+      throw Failure("cannot compress " + Quoted(c.input) + ": " + e.what());
+    }
+  });
+  WriteFileAtomically(c.output, r.bytes);
+  if (!c.method.quiet)
+  {
+    const double voxels = double(r.header.size.NumberOfVoxels());
+    std::cout << "mode: " << ModeName(options.mode) << "\n"
+              << "bytes: " << r.bytes.size() << "\n"
+              << "bpv: " << double(r.bytes.size()) * 8.0 / voxels << "\n"
+              << "points: " << r.header.numberOfPoints << "\n"
+              << "step: " << r.header.quantizationStep << "\n"
+              << "PSNR: " << r.psnr << " dB\n"
+              << "seconds: " << SecondsSince(start) << "\n";
+  }
+}
+
+const RegisterCommand compress{ { "compress",
+                                  "Compress a volume into a .dcv file; prints bytes, bpv, points, step, PSNR (of what "
+                                  "decompress gives) and seconds",
+                                  [](CLI::App & command) -> std::function<void()> {
+                                    auto c = std::make_shared<CompressOptions>();
+                                    AddMethodOptions(command, c->input, c->method);
+                                    command.add_option("OUTPUT", c->output, "Output .dcv file")->required();
+                                    EncoderOptions & e = c->method.encoder;
+                                    auto * bpv = command.add_option(
+                                      "--bpv", e.bitsPerVoxel, "Bits per voxel of the whole file (the point count and step are chosen)");
+                                    auto * psnr = command.add_option(
+                                      "--psnr", e.psnr, "Quality target, dB: the smallest file whose decoded PSNR reaches it");
+                                    auto * points = command.add_option(
+                                      "--points,-n", e.numberOfPoints, "Number of significant points (at least 8)")
+                                      ->capture_default_str();
+                                    bpv->excludes(psnr)->excludes(points);
+                                    psnr->excludes(points);
+                                    command.add_option("--step",
+                                                       e.quantizationStep,
+                                                       "Quantization step of the values (0: with --bpv the best of 1, 2 "
+                                                       "and 4 times 1/64 of the peak, else 1/64 of the peak, less where "
+                                                       "--psnr needs it)");
+                                    return [c] { Compress(*c); };
+                                  } } };
+} // namespace
+} // namespace dcv::tools

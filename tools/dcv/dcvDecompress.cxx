@@ -1,0 +1,70 @@
+/*=========================================================================
+ *
+ *  Copyright NumFOCUS
+ *
+ *  Licensed under the Apache License, Version 2.0 (the "License");
+ *  you may not use this file except in compliance with the License.
+ *  You may obtain a copy of the License at
+ *
+ *         http://www.apache.org/licenses/LICENSE-2.0.txt
+ *
+ *  Unless required by applicable law or agreed to in writing, software
+ *  distributed under the License is distributed on an "AS IS" BASIS,
+ *  WITHOUT WARRANTIES OR CONDITIONS OF ANY KIND, either express or implied.
+ *  See the License for the specific language governing permissions and
+ *  limitations under the License.
+ *
+ *=========================================================================*/
+// dcv decompress: a .dcv file into any image format ITK writes.
+#include "dcvCodec.h"
+#include "dcvCommand.h"
+
+#include <iostream>
+
+namespace dcv::tools
+{
+namespace
+{
+struct DecompressOptions
+{
+  std::string input;
+  std::string output;
+  bool        force{ false };
+  bool        quiet{ false };
+};
+
+void
+Decompress(const DecompressOptions & d)
+{
+  const CompressedFile file = ReadCompressedFile(d.input);
+  CheckOutput(d.output, d.force);
+  const auto start = std::chrono::steady_clock::now();
+  const Approximation a = Decode(file);
+  VisitPixelType(file.header.pixelType, [&](auto pixel) {
+    auto image = itk::Image<decltype(pixel), 3>::New();
+    itk::CopyDCVGeometry(file.header, image.GetPointer());
+    image->SetBufferedRegion(image->GetLargestPossibleRegion());
+    image->Allocate();
+    Rasterize(a, image->GetBufferPointer());
+    WriteVolume(image.GetPointer(), d.output);
+  });
+  if (!d.quiet)
+  {
+    std::cout << "seconds: " << SecondsSince(start) << "\n";
+  }
+}
+
+const RegisterCommand decompress{ { "decompress",
+                                    "Decode a .dcv file into any image format ITK writes (gzip-compressed where the "
+                                    "format allows)",
+                                    [](CLI::App & command) -> std::function<void()> {
+                                      auto d = std::make_shared<DecompressOptions>();
+                                      command.add_option("INPUT", d->input, "Input .dcv file")->required();
+                                      command.add_option("OUTPUT", d->output, "Output volume (format from its extension)")
+                                        ->required();
+                                      command.add_flag("--force,-f", d->force, "Overwrite OUTPUT if it exists");
+                                      command.add_flag("--quiet,-q", d->quiet, "Print nothing but errors");
+                                      return [d] { Decompress(*d); };
+                                    } } };
+} // namespace
+} // namespace dcv::tools

@@ -1,0 +1,136 @@
+/*=========================================================================
+ *
+ *  Copyright NumFOCUS
+ *
+ *  Licensed under the Apache License, Version 2.0 (the "License");
+ *  you may not use this file except in compliance with the License.
+ *  You may obtain a copy of the License at
+ *
+ *         http://www.apache.org/licenses/LICENSE-2.0.txt
+ *
+ *  Unless required by applicable law or agreed to in writing, software
+ *  distributed under the License is distributed on an "AS IS" BASIS,
+ *  WITHOUT WARRANTIES OR CONDITIONS OF ANY KIND, either express or implied.
+ *  See the License for the specific language governing permissions and
+ *  limitations under the License.
+ *
+ *=========================================================================*/
+// dcv: the command-line face of the DelaunayCompression module. The subcommands are the files
+// beside this one (dcvCompress.cxx, dcvDecompress.cxx, ...).
+#include "dcvCommand.h"
+
+#include "itkMacro.h"
+
+#include <algorithm>
+#include <chrono>
+#include <iostream>
+
+namespace dcv::tools
+{
+
+std::vector<Command> &
+Commands()
+{
+  static std::vector<Command> commands;
+  return commands;
+}
+
+EncoderOptions
+MethodOptions::Checked() const
+{
+  EncoderOptions o = encoder;
+  try
+  {
+    o.mode = ParseMode(mode);
+  }
+  catch (const std::invalid_argument & e)
+  {
+    throw Failure(std::string("--mode: ") + e.what());
+  }
+  try
+  {
+    CheckOptions(o);
+  }
+  catch (const std::invalid_argument & e)
+  {
+    throw Failure(e.what());
+  }
+  return o;
+}
+
+void
+AddMethodOptions(CLI::App & command, std::string & input, MethodOptions & o)
+{
+  command.add_option("INPUT", input, "Input volume (NRRD, NIfTI, MetaImage, ...)")->required();
+  command
+    .add_option("--mode,-m",
+                o.mode,
+                "silva (refinement), dec (+ decimation), dec+com (+ combined image approach: the paper's method), "
+                "best (+ least-squares values)")
+    ->capture_default_str();
+  command.add_option("--domain-sigma", o.encoder.domainSigma, "Bilateral filter of I*: spatial sigma, voxels")
+    ->capture_default_str();
+  command
+    .add_option("--range-sigma", o.encoder.rangeSigma, "Bilateral filter of I*: intensity sigma (0: 8% of the peak)")
+    ->capture_default_str();
+  command.add_option("--alpha", o.encoder.alpha, "Choose positions on I* until PSNR >= alpha * PSNR(I*)")
+    ->capture_default_str();
+  command.add_flag("--force,-f", o.force, "Overwrite OUTPUT if it exists");
+  command.add_flag("--quiet,-q", o.quiet, "Print nothing but errors");
+}
+
+double
+SecondsSince(std::chrono::steady_clock::time_point start)
+{
+  return std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+}
+
+} // namespace dcv::tools
+
+int
+main(int argc, char * argv[])
+{
+  using namespace dcv::tools;
+  CLI::App app{ "dcv: lossy compression of 3D volumes by linear splines over adaptive Delaunay tetrahedralizations "
+                "(ITK module DelaunayCompression)" };
+  app.require_subcommand(1);
+  app.set_version_flag("--version", "dcv 0.1.0");
+  auto & commands = Commands();
+  std::sort(commands.begin(), commands.end(), [](const Command & a, const Command & b) { return a.name < b.name; });
+  std::vector<std::pair<CLI::App *, std::function<void()>>> runs;
+  for (const auto & c : commands)
+  {
+    CLI::App * command = app.add_subcommand(c.name, c.description);
+    runs.emplace_back(command, c.setup(*command));
+  }
+  try
+  {
+    app.parse(argc, argv);
+  }
+  catch (const CLI::ParseError & e)
+  {
+    // Help and version exit 0; every usage error exits 1, as the other errors do.
+    return app.exit(e) == 0 ? 0 : 1;
+  }
+  try
+  {
+    for (auto & [command, run] : runs)
+    {
+      if (command->parsed())
+      {
+        run();
+      }
+    }
+  }
+  catch (const itk::ExceptionObject & e)
+  {
+    std::cerr << "dcv: " << e.GetDescription() << std::endl;
+    return 1;
+  }
+  catch (const std::exception & e)
+  {
+    std::cerr << "dcv: " << e.what() << std::endl;
+    return 1;
+  }
+  return 0;
+}
