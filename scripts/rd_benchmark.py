@@ -5,7 +5,7 @@ For every volume and every budget bpv, the budget in bytes is B = floor(bpv * vo
 is tuned to the best PSNR (MSE over all voxels, against the original values) among the settings whose WHOLE
 output file has at most B bytes:
 
-  dcv         build/cli/dcv compress --bpv R (R = bpv; lowered only if the file exceeds B), decompress, PSNR
+  dcv         build/tools/dcv/dcv compress --bpv R (R = bpv; lowered only if the file exceeds B), decompress, PSNR
   j2k-comp    OpenJPEG, the z slices as the components of one 2D image (raw input, -mct 0); -r searched
   j2k-mosaic  OpenJPEG, the z slices tiled into one near-square 2D PGM mosaic; -r searched
   x265        HEVC, the z slices as frames of a 4:0:0 video (--preset slower --tune psnr); --crf searched
@@ -751,7 +751,7 @@ def main():
     ap.add_argument("--volumes", nargs="+", help="file names in --data (default: all *.nrrd)")
     ap.add_argument("--bpv", nargs="+", type=float, default=DEFAULT_BPVS, help="budgets in bits per voxel")
     ap.add_argument("--codecs", nargs="+", choices=CODECS, default=CODECS)
-    ap.add_argument("--dcv", default=os.path.join(REPO, "build", "cli", "dcv"))
+    ap.add_argument("--dcv", default=os.path.join(REPO, "build", "tools", "dcv", "dcv"))
     ap.add_argument("--out", default=os.path.join(REPO, "build", "rd"), help="output folder (default build/rd)")
     ap.add_argument("--merge", nargs="+", metavar="CSV", default=[],
                     help="rd.csv files of earlier runs: their rows are combined with this run's (this run wins for "

@@ -11,5 +11,6 @@ cmake -S examples -B build/examples -G Ninja -DCMAKE_BUILD_TYPE=Release -DCMAKE_
 cmake --build build/examples
 
 mkdir -p build/examples/run
-build/cli/dcv phantom build/examples/run/phantom.nrrd --size 48 --force
+build/tools/dcv/dcv phantom build/examples/run/phantom.nrrd --size 48 --force
 build/examples/ApproximateVolume build/examples/run/phantom.nrrd build/examples/run/approximation.nrrd 2000
+build/examples/WriteReadDCV build/examples/run/phantom.nrrd build/examples/run/phantom.dcv 0.125
