@@ -251,6 +251,7 @@ TEST_F(CommandLine, CompressRefusesABudgetTooSmallAndWritesNothing)
   EXPECT_NE(r.output.find("cannot compress"), std::string::npos) << r.output;
   EXPECT_NE(r.output.find("phantom.nrrd"), std::string::npos) << r.output;
   EXPECT_NE(r.output.find("too few"), std::string::npos) << r.output;
+  EXPECT_EQ(r.output.find("ITK ERROR"), std::string::npos) << r.output; // the user's words, not ITK's
   EXPECT_FALSE(fs::exists(packed));
 }
 

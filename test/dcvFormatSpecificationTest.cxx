@@ -202,16 +202,9 @@ protected:
     if (!neighbours.empty())
       command += " --neighbours " + Quote(neighbours);
     command += " 2>" + Quote(errors);
-    Result r{ -1, "", "" };
-    FILE * pipe = ::popen(command.c_str(), "r");
-    if (!pipe)
-      return r;
-    char buffer[65536];
-    while (std::size_t n = std::fread(buffer, 1, sizeof(buffer), pipe))
-      r.output.append(buffer, n);
-    const int status = ::pclose(pipe);
-    r.status = WIFEXITED(status) ? WEXITSTATUS(status) : 128 + WTERMSIG(status);
-    std::ifstream in(errors);
+    const dcv::test::Result run = dcv::test::RunCommand(command);
+    Result                  r{ run.status, run.output, "" };
+    std::ifstream           in(errors);
     r.errors.assign(std::istreambuf_iterator<char>(in), std::istreambuf_iterator<char>());
     return r;
   }

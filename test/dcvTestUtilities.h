@@ -19,6 +19,7 @@
 #define dcvTestUtilities_h
 
 #include "dcvApproximation.h"
+#include "dcvPhantom.h"
 
 #include "itkImageFileReader.h"
 
@@ -92,11 +93,10 @@ struct Result
   std::string output; // stdout and stderr
 };
 
-/** Runs `dcv ARGUMENTS` (the tool built with the tests). */
+/** Runs a shell command and collects its standard output. */
 inline Result
-RunDcv(const std::string & arguments)
+RunCommand(const std::string & command)
 {
-  const std::string command = std::string(DCV_EXECUTABLE) + " " + arguments + " 2>&1";
   FILE *            pipe = ::popen(command.c_str(), "r");
   Result            r{ -1, "" };
   if (!pipe)
@@ -107,6 +107,47 @@ RunDcv(const std::string & arguments)
   const int status = ::pclose(pipe);
   r.status = WIFEXITED(status) ? WEXITSTATUS(status) : 128 + WTERMSIG(status);
   return r;
+}
+
+/** Runs `dcv ARGUMENTS` (the tool built with the tests), stdout and stderr together. */
+inline Result
+RunDcv(const std::string & arguments)
+{
+  return RunCommand(std::string(DCV_EXECUTABLE) + " " + arguments + " 2>&1");
+}
+
+/** A Shepp-Logan phantom image; `oblique` puts it on a rotated, anisotropic, shifted grid (spacing 0.5,
+ * 1, 2.5; a quarter turn about z) whose region starts at `start`. */
+inline itk::Image<uint8_t, 3>::Pointer
+PhantomImage(const GridSize & grid, bool oblique = false, const itk::Index<3> & start = { { 0, 0, 0 } })
+{
+  using ImageType = itk::Image<uint8_t, 3>;
+  auto                image = ImageType::New();
+  ImageType::SizeType size{ { itk::SizeValueType(grid.x), itk::SizeValueType(grid.y), itk::SizeValueType(grid.z) } };
+  image->SetRegions(ImageType::RegionType(start, size));
+  image->Allocate();
+  const auto voxels = SheppLoganPhantom(grid);
+  std::copy(voxels.begin(), voxels.end(), image->GetBufferPointer());
+  if (oblique)
+  {
+    ImageType::SpacingType spacing;
+    spacing[0] = 0.5;
+    spacing[1] = 1.0;
+    spacing[2] = 2.5;
+    image->SetSpacing(spacing);
+    ImageType::PointType origin;
+    origin[0] = 10.0;
+    origin[1] = -5.0;
+    origin[2] = 3.25;
+    image->SetOrigin(origin);
+    ImageType::DirectionType direction;
+    direction.Fill(0.0);
+    direction(0, 1) = 1.0;
+    direction(1, 0) = -1.0;
+    direction(2, 2) = 1.0;
+    image->SetDirection(direction);
+  }
+  return image;
 }
 
 /** A fresh directory for one test, removed with the object. */

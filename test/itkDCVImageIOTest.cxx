@@ -176,16 +176,7 @@ TEST(DCVMeshIO, MeshRoundTripThroughMeshFileWriterAndReader)
   using ImageType = itk::Image<uint8_t, 3>;
   using MeshType = itk::Mesh<float, 3>;
   const dcv::GridSize grid{ 26, 24, 20 };
-  auto                image = ImageType::New();
-  image->SetRegions(ImageType::SizeType{ { 26, 24, 20 } });
-  image->Allocate();
-  const auto voxels = dcv::SheppLoganPhantom(grid);
-  std::copy(voxels.begin(), voxels.end(), image->GetBufferPointer());
-  ImageType::SpacingType spacing;
-  spacing[0] = 0.7;
-  spacing[1] = 1.1;
-  spacing[2] = 2.0;
-  image->SetSpacing(spacing);
+  const auto          image = dcv::test::PhantomImage(grid, true);
 
   auto approximate = itk::DelaunayApproximationImageToMeshFilter<ImageType, MeshType>::New();
   approximate->SetInput(image);

@@ -36,33 +36,10 @@ namespace
 using ImageType = itk::Image<uint8_t, 3>;
 using MeshType = itk::Mesh<double, 3>;
 
-/** A phantom on a rotated, anisotropic grid. */
 ImageType::Pointer
 Phantom(const dcv::GridSize & grid)
 {
-  auto image = ImageType::New();
-  image->SetRegions(ImageType::SizeType{ { itk::SizeValueType(grid.x), itk::SizeValueType(grid.y),
-                                           itk::SizeValueType(grid.z) } });
-  image->Allocate();
-  const auto voxels = dcv::SheppLoganPhantom(grid);
-  std::copy(voxels.begin(), voxels.end(), image->GetBufferPointer());
-  ImageType::SpacingType spacing;
-  spacing[0] = 0.8;
-  spacing[1] = 0.8;
-  spacing[2] = 2.5;
-  image->SetSpacing(spacing);
-  ImageType::PointType origin;
-  origin[0] = -12.5;
-  origin[1] = 4.0;
-  origin[2] = 30.0;
-  image->SetOrigin(origin);
-  ImageType::DirectionType direction;
-  direction.Fill(0.0);
-  direction(0, 1) = 1.0;
-  direction(1, 0) = -1.0;
-  direction(2, 2) = 1.0;
-  image->SetDirection(direction);
-  return image;
+  return dcv::test::PhantomImage(grid, true);
 }
 
 template <typename TImage>

@@ -37,30 +37,7 @@ using RasterizeFilter = itk::TetrahedralMeshToImageFilter<MeshType, ImageType>;
 ImageType::Pointer
 MakePhantomImage(const dcv::GridSize & grid)
 {
-  auto                  image = ImageType::New();
-  ImageType::IndexType  start{ { 2, -3, 4 } };
-  ImageType::SizeType   size{ { itk::SizeValueType(grid.x), itk::SizeValueType(grid.y), itk::SizeValueType(grid.z) } };
-  image->SetRegions(ImageType::RegionType(start, size));
-  image->Allocate();
-  const auto voxels = dcv::SheppLoganPhantom(grid);
-  std::copy(voxels.begin(), voxels.end(), image->GetBufferPointer());
-  ImageType::SpacingType spacing;
-  spacing[0] = 0.5;
-  spacing[1] = 1.0;
-  spacing[2] = 2.5;
-  image->SetSpacing(spacing);
-  ImageType::PointType origin;
-  origin[0] = 10.0;
-  origin[1] = -5.0;
-  origin[2] = 3.25;
-  image->SetOrigin(origin);
-  ImageType::DirectionType direction;
-  direction.Fill(0.0);
-  direction(0, 1) = 1.0;
-  direction(1, 0) = -1.0;
-  direction(2, 2) = 1.0;
-  image->SetDirection(direction);
-  return image;
+  return dcv::test::PhantomImage(grid, true, { { 2, -3, 4 } });
 }
 
 TEST(DelaunayApproximationImageToMeshFilter, SetGetAndPrintSelf)

@@ -35,16 +35,9 @@ struct ApproximateOptions
 void
 Approximate(const ApproximateOptions & a)
 {
-  const EncoderOptions options = [&a] {
-    EncoderOptions o = a.method.Checked();
-    o.progress = TerminalProgress("approximating", a.method.quiet);
-    return o;
-  }();
-  const PixelType type = ReadVolumePixelType(a.input);
-  CheckOutput(a.output, a.method.force);
-  VisitPixelType(type, [&](auto pixel) {
-    using T = decltype(pixel);
-    const auto    image = ReadVolume<T>(a.input);
+  const EncoderOptions options = a.method.Checked("approximating");
+  WithVolume(a.input, a.output, a.method.force, false, [&](auto image) {
+    using T = typename decltype(image)::ObjectType::PixelType;
     const auto    start = std::chrono::steady_clock::now();
     EncoderResult r;
     try

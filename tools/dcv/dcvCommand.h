@@ -59,10 +59,22 @@ struct MethodOptions
   bool           force{ false };
   bool           quiet{ false };
 
-  /** The encoder options with the mode parsed and every value checked (Failure otherwise). */
+  /** The encoder options with the mode parsed, every value checked (Failure otherwise), and progress
+   * shown as `label` on a terminal unless quiet. */
   EncoderOptions
-  Checked() const;
+  Checked(const std::string & label) const;
 };
+
+/** Reads INPUT as an image of its own pixel type and calls f(image), after checking OUTPUT
+ * (CheckOutput). */
+template <typename TFunction>
+void
+WithVolume(const std::string & input, const std::string & output, bool force, bool dcvFile, TFunction && f)
+{
+  const PixelType type = ReadVolumePixelType(input);
+  CheckOutput(output, force, dcvFile);
+  VisitPixelType(type, [&](auto pixel) { f(ReadVolume<decltype(pixel)>(input)); });
+}
 
 /** Declares INPUT, the method's options, --force and --quiet on a command. */
 void

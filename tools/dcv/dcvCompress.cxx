@@ -35,17 +35,10 @@ struct CompressOptions
 void
 Compress(const CompressOptions & c)
 {
-  const EncoderOptions options = [&c] {
-    EncoderOptions o = c.method.Checked();
-    o.progress = TerminalProgress("compressing", c.method.quiet);
-    return o;
-  }();
-  const PixelType type = ReadVolumePixelType(c.input);
-  CheckOutput(c.output, c.method.force, true);
-  const auto    start = std::chrono::steady_clock::now();
-  EncoderResult r;
-  VisitPixelType(type, [&](auto pixel) {
-    const auto image = ReadVolume<decltype(pixel)>(c.input);
+  const EncoderOptions options = c.method.Checked("compressing");
+  const auto           start = std::chrono::steady_clock::now();
+  EncoderResult        r;
+  WithVolume(c.input, c.output, c.method.force, true, [&](auto image) {
     try
     {
       r = itk::DCVEncode(image.GetPointer(), options);

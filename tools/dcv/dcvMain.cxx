@@ -36,9 +36,10 @@ Commands()
 }
 
 EncoderOptions
-MethodOptions::Checked() const
+MethodOptions::Checked(const std::string & label) const
 {
   EncoderOptions o = encoder;
+  o.progress = TerminalProgress(label, quiet);
   try
   {
     o.mode = ParseMode(mode);
