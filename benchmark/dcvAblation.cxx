@@ -48,8 +48,8 @@ void
 Row(const std::string & path, double voxelsPerPoint, double bpv)
 {
   using ImageType = itk::Image<TPixel, 3>;
-  auto       image = itk::ReadImage<ImageType>(path);
-  const auto n = image->GetLargestPossibleRegion().GetNumberOfPixels();
+  auto         image = itk::ReadImage<ImageType>(path);
+  const auto   n = image->GetLargestPossibleRegion().GetNumberOfPixels();
   const auto   points = std::max<std::size_t>(8, std::size_t(double(n) / voxelsPerPoint));
   const double peak = dcv::PSNRPeak(image->GetBufferPointer(), n);
   const auto   size = image->GetLargestPossibleRegion().GetSize();

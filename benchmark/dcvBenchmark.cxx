@@ -156,8 +156,8 @@ Benchmark(const std::string & path, const Volume & volume, const std::vector<std
   const float *         original = volume.image->GetBufferPointer();
   const auto            range = std::minmax_element(original, original + voxels);
   const double          peak = dcv::PSNRPeak(*range.first, *range.second, volume.eightBit);
-  const std::string name = fs::path(path).filename().string();
-  const std::string size = std::to_string(grid.x) + "x" + std::to_string(grid.y) + "x" + std::to_string(grid.z);
+  const std::string     name = fs::path(path).filename().string();
+  const std::string     size = std::to_string(grid.x) + "x" + std::to_string(grid.y) + "x" + std::to_string(grid.z);
 
   // Allocated once, so the peak memory reflects the engine rather than repeated buffers.
   std::vector<float> decoded(voxels);

@@ -43,8 +43,8 @@ main(int argc, char * argv[])
               << "  and writes the approximation, on the input's grid, to OUTPUT." << std::endl;
     return EXIT_FAILURE;
   }
-  const char * inputFileName = argv[1];
-  const char * outputFileName = argv[2];
+  const char *       inputFileName = argv[1];
+  const char *       outputFileName = argv[2];
   itk::SizeValueType numberOfPoints = 5000;
   if (argc == 4)
   {

@@ -44,7 +44,8 @@ main(int argc, char * argv[])
   {
     writer->Update();
     const auto decoded = itk::ReadImage<ImageType>(argv[2]);
-    std::cout << "PSNR " << io->GetLastEncoderResult().psnr << " dB, " << decoded->GetBufferedRegion().GetSize() << " voxels read back" << std::endl;
+    std::cout << "PSNR " << io->GetLastEncoderResult().psnr << " dB, " << decoded->GetBufferedRegion().GetSize()
+              << " voxels read back" << std::endl;
   }
   catch (const itk::ExceptionObject & e)
   {

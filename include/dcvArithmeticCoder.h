@@ -48,7 +48,7 @@ namespace dcv
 class BitModel
 {
 public:
-  static constexpr int     ProbabilityBits = 16;
+  static constexpr int      ProbabilityBits = 16;
   static constexpr uint32_t One = 1u << ProbabilityBits;
 
   explicit BitModel(int maximumShift = 5)
@@ -91,12 +91,12 @@ public:
 
 private:
   /** round(log2(count + 2)), up to 7: the shift whose rate is closest to 1 / (count + 2). */
-  static constexpr uint8_t ShiftTable[128] = {
-    1, 2, 2, 2, 3, 3, 3, 3, 3, 3, 4, 4, 4, 4, 4, 4, 4, 4, 4, 4, 4, 5, 5, 5, 5, 5, 5, 5, 5, 5, 5, 5,
-    5, 5, 5, 5, 5, 5, 5, 5, 5, 5, 5, 5, 6, 6, 6, 6, 6, 6, 6, 6, 6, 6, 6, 6, 6, 6, 6, 6, 6, 6, 6, 6,
-    6, 6, 6, 6, 6, 6, 6, 6, 6, 6, 6, 6, 6, 6, 6, 6, 6, 6, 6, 6, 6, 6, 6, 6, 6, 7, 7, 7, 7, 7, 7, 7,
-    7, 7, 7, 7, 7, 7, 7, 7, 7, 7, 7, 7, 7, 7, 7, 7, 7, 7, 7, 7, 7, 7, 7, 7, 7, 7, 7, 7, 7, 7, 7, 7
-  };
+  static constexpr uint8_t ShiftTable[128] = { 1, 2, 2, 2, 3, 3, 3, 3, 3, 3, 4, 4, 4, 4, 4, 4, 4, 4, 4, 4, 4, 5,
+                                               5, 5, 5, 5, 5, 5, 5, 5, 5, 5, 5, 5, 5, 5, 5, 5, 5, 5, 5, 5, 5, 5,
+                                               6, 6, 6, 6, 6, 6, 6, 6, 6, 6, 6, 6, 6, 6, 6, 6, 6, 6, 6, 6, 6, 6,
+                                               6, 6, 6, 6, 6, 6, 6, 6, 6, 6, 6, 6, 6, 6, 6, 6, 6, 6, 6, 6, 6, 6,
+                                               6, 7, 7, 7, 7, 7, 7, 7, 7, 7, 7, 7, 7, 7, 7, 7, 7, 7, 7, 7, 7, 7,
+                                               7, 7, 7, 7, 7, 7, 7, 7, 7, 7, 7, 7, 7, 7, 7, 7, 7, 7 };
 
   uint16_t m_Probability{ uint16_t(One / 2) };
   uint8_t  m_Count{ 0 };
@@ -228,7 +228,7 @@ public:
   Decode(ArithmeticDecoder & decoder);
 
 private:
-  std::array<BitModel, 32>                                         m_Prefix;
+  std::array<BitModel, 32>                                        m_Prefix;
   std::array<std::array<BitModel, 1 << AdaptiveMantissaBits>, 33> m_Mantissa;
 };
 

@@ -101,9 +101,9 @@ PixelTypeOf()
   {
     static_assert(sizeof(T) <= 4, ".dcv volumes hold integers of at most 32 bits");
     constexpr bool s = std::is_signed<T>::value;
-    return sizeof(T) == 1 ? (s ? PixelType::Int8 : PixelType::UInt8)
-                          : sizeof(T) == 2 ? (s ? PixelType::Int16 : PixelType::UInt16)
-                                           : (s ? PixelType::Int32 : PixelType::UInt32);
+    return sizeof(T) == 1   ? (s ? PixelType::Int8 : PixelType::UInt8)
+           : sizeof(T) == 2 ? (s ? PixelType::Int16 : PixelType::UInt16)
+                            : (s ? PixelType::Int32 : PixelType::UInt32);
   }
 }
 
@@ -121,15 +121,15 @@ struct FileHeader
   /** The mode of a file whose points were not chosen by the encoder (written as a mesh). */
   static constexpr uint8_t UnknownMode = 255;
 
-  PixelType              pixelType{ PixelType::UInt8 };
-  uint8_t                mode{ 0 }; // informative: the dcv::Mode that encoded it, or UnknownMode
-  GridSize               size;
-  std::array<double, 3>  spacing{ 1.0, 1.0, 1.0 };
-  std::array<double, 3>  origin{ 0.0, 0.0, 0.0 };
-  std::array<double, 9>  direction{ 1, 0, 0, 0, 1, 0, 0, 0, 1 }; // row major
-  double                 quantizationOrigin{ 0.0 };
-  double                 quantizationStep{ 1.0 };
-  uint32_t               numberOfPoints{ 0 };
+  PixelType             pixelType{ PixelType::UInt8 };
+  uint8_t               mode{ 0 }; // informative: the dcv::Mode that encoded it, or UnknownMode
+  GridSize              size;
+  std::array<double, 3> spacing{ 1.0, 1.0, 1.0 };
+  std::array<double, 3> origin{ 0.0, 0.0, 0.0 };
+  std::array<double, 9> direction{ 1, 0, 0, 0, 1, 0, 0, 0, 1 }; // row major
+  double                quantizationOrigin{ 0.0 };
+  double                quantizationStep{ 1.0 };
+  uint32_t              numberOfPoints{ 0 };
   std::vector<std::pair<std::string, std::string>> metadata; // UTF-8 key/value pairs
 };
 
@@ -140,10 +140,8 @@ DelaunayCompression_EXPORT std::vector<uint8_t>
 /** Parses and checks a whole file (magic, version, sizes, lengths, CRC-32) before anything is
  * allocated from its numbers; throws FormatError starting with `name`. */
 DelaunayCompression_EXPORT void
-ParseFile(const std::vector<uint8_t> & bytes,
-          const std::string &          name,
-          FileHeader &                 header,
-          std::vector<uint8_t> &       payload);
+ParseFile(const std::vector<uint8_t> & bytes, const std::string & name, FileHeader & header,
+          std::vector<uint8_t> & payload);
 
 /** A parsed .dcv file: its header and coded payload, and the name errors give it (the path, quoted). */
 struct CompressedFile
@@ -156,7 +154,7 @@ struct CompressedFile
 
 /** Reads and parses a whole file, once (FormatError naming it when it cannot be read or parsed). */
 DelaunayCompression_EXPORT CompressedFile
-                           ReadCompressedFile(const std::string & path);
+ReadCompressedFile(const std::string & path);
 
 /** Reads a whole file (FormatError naming it when it cannot be read). */
 DelaunayCompression_EXPORT std::vector<uint8_t>

@@ -195,8 +195,8 @@ ForEachSpan(const GridSize & grid, const std::array<GridPoint, 4> & p, TFunction
     return;
   }
   // Face i is opposite vertex i; its plane function n.X + d is positive inside the cell.
-  int64_t n[4][3];
-  int64_t d[4];
+  int64_t              n[4][3];
+  int64_t              d[4];
   static constexpr int faces[4][3] = { { 1, 2, 3 }, { 0, 2, 3 }, { 0, 1, 3 }, { 0, 1, 2 } };
   for (int i = 0; i < 4; ++i)
   {
@@ -267,7 +267,7 @@ ForEachSpan(const GridSize & grid, const std::array<GridPoint, 4> & p, TFunction
     // computed ends are within 1e-10 of the true ones).
     const int32_t y0 = std::max(lo[1], int32_t(std::ceil(ymin - 1e-6)));
     const int32_t y1 = std::min(hi[1], int32_t(std::floor(ymax + 1e-6)));
-    const int sz = detail::InwardSign(z, grid.z);
+    const int     sz = detail::InwardSign(z, grid.z);
     // Per face, along y, the inside test of a row is "x > num / m" (nx > 0) or "x < num / m"
     // (nx < 0), num affine in y. Keep t = floor(num / m) and r = num - t m exactly, stepping them
     // by whole rows: one division per face and slice, none per row.
@@ -353,10 +353,8 @@ ConvertValue(double v)
 /** Writes the linear interpolation of one tetrahedron into a buffer laid out as the grid. */
 template <typename T>
 void
-RasterizeTetrahedron(const GridSize &                   grid,
-                     const std::array<GridPoint, 4> & points,
-                     const std::array<double, 4> &    values,
-                     T *                              out)
+RasterizeTetrahedron(const GridSize & grid, const std::array<GridPoint, 4> & points,
+                     const std::array<double, 4> & values, T * out)
 {
   const CanonicalTetrahedron t(points, values);
   const LinearFunction       L(t);

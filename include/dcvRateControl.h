@@ -112,9 +112,7 @@ struct BudgetResult
  * The engine ends holding exactly the returned payload's approximation; values are q0 + k step.
  * Throws std::length_error when even the 8 corners do not fit. */
 DelaunayCompression_EXPORT BudgetResult
-ApproximateToBudget(RefinementEngine &                         engine,
-                    std::size_t                                payloadBytes,
-                    double                                     q0,
+ApproximateToBudget(RefinementEngine & engine, std::size_t payloadBytes, double q0,
                     const std::vector<double> &                stepMultiples = { 1.0 },
                     const RefinementEngine::ProgressFunction & progress = RefinementEngine::ProgressFunction());
 
@@ -127,9 +125,7 @@ using DecodedErrorFunction = std::function<double(const RefinementEngine &)>;
  * known within QualityCountTolerance. Throws std::range_error when no count reaches the target (the
  * message gives the best error reached). */
 DelaunayCompression_EXPORT BudgetResult
-ApproximateToQuality(RefinementEngine &                         engine,
-                     double                                     squaredError,
-                     double                                     q0,
+ApproximateToQuality(RefinementEngine & engine, double squaredError, double q0,
                      const DecodedErrorFunction &               decodedError,
                      const RefinementEngine::ProgressFunction & progress = RefinementEngine::ProgressFunction());
 

@@ -80,7 +80,7 @@ struct RefinementParameters
 
 /** The engine's parameters for a mode (smoothed image, peak and value range left to the caller). */
 DelaunayCompression_EXPORT RefinementParameters
-                           ParametersForMode(Mode mode);
+ParametersForMode(Mode mode);
 
 /** Whether a mode needs the smoothed image I* (the combined image approach). */
 DelaunayCompression_EXPORT bool

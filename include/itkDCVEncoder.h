@@ -94,10 +94,10 @@ public:
   }
 
 private:
-  std::vector<float>          m_Voxels;
-  Image<float, 3>::Pointer    m_Smoothed;
-  dcv::EncoderInput           m_Input;
-  double                      m_SmoothingSeconds{ 0.0 };
+  std::vector<float>       m_Voxels;
+  Image<float, 3>::Pointer m_Smoothed;
+  dcv::EncoderInput        m_Input;
+  double                   m_SmoothingSeconds{ 0.0 };
 };
 
 namespace DCVEncoderDetail
@@ -108,10 +108,10 @@ template <typename TImage, typename TCall>
 dcv::EncoderResult
 Run(const TImage * image, const dcv::EncoderOptions & options, TCall call)
 {
-  const auto                start = std::chrono::steady_clock::now();
+  const auto                    start = std::chrono::steady_clock::now();
   const DCVEncoderInput<TImage> input(image, options);
-  dcv::EncoderOptions       o = options;
-  const double              engineStart = input.Get().smoothed ? 0.2 : 0.0;
+  dcv::EncoderOptions           o = options;
+  const double                  engineStart = input.Get().smoothed ? 0.2 : 0.0;
   if (options.progress)
   {
     options.progress(engineStart);

@@ -119,7 +119,8 @@ CopyDCVGeometry(const ImageIOBase * io, dcv::FileHeader & h)
  * every place that turns a mesh point back into a voxel of the .dcv grid. */
 template <typename TPoint>
 bool
-PhysicalPointToGridPoint(const ImageBase<3> * image, const ImageRegion<3> & region, const TPoint & p, dcv::GridPoint & g)
+PhysicalPointToGridPoint(const ImageBase<3> * image, const ImageRegion<3> & region, const TPoint & p,
+                         dcv::GridPoint & g)
 {
   typename ImageBase<3>::PointType physical;
   physical.CastFrom(p);
@@ -185,7 +186,8 @@ inline IOComponentEnum
 DCVComponentType(dcv::PixelType type)
 {
   IOComponentEnum component = IOComponentEnum::UNKNOWNCOMPONENTTYPE;
-  dcv::VisitPixelType(type, [&component](auto pixel) { component = ImageIOBase::MapPixelType<decltype(pixel)>::CType; });
+  dcv::VisitPixelType(type,
+                      [&component](auto pixel) { component = ImageIOBase::MapPixelType<decltype(pixel)>::CType; });
   return component;
 }
 

@@ -125,11 +125,11 @@ protected:
   }
 
 private:
-  std::string          m_FileName;
-  dcv::CompressedFile  m_File;
-  dcv::Approximation   m_Approximation;
-  bool                 m_Decoded{ false };
-  SizeValueType        m_NumberOfRasterizedCells{ 0 };
+  std::string         m_FileName;
+  dcv::CompressedFile m_File;
+  dcv::Approximation  m_Approximation;
+  bool                m_Decoded{ false };
+  SizeValueType       m_NumberOfRasterizedCells{ 0 };
 };
 
 } // namespace itk

@@ -114,13 +114,13 @@ protected:
   GenerateData() override;
 
 private:
-  SizeType                            m_Size{ { 0, 0, 0 } };
-  IndexType                           m_Index{ { 0, 0, 0 } };
-  SpacingType                         m_Spacing{ 1.0 };
-  PointType                           m_Origin{ 0.0 };
-  DirectionType                       m_Direction{ DirectionType::GetIdentity() };
-  ReferenceImageType::ConstPointer    m_ReferenceImage;
-  OutputPixelType                     m_BackgroundValue{};
+  SizeType                         m_Size{ { 0, 0, 0 } };
+  IndexType                        m_Index{ { 0, 0, 0 } };
+  SpacingType                      m_Spacing{ 1.0 };
+  PointType                        m_Origin{ 0.0 };
+  DirectionType                    m_Direction{ DirectionType::GetIdentity() };
+  ReferenceImageType::ConstPointer m_ReferenceImage;
+  OutputPixelType                  m_BackgroundValue{};
 };
 
 } // namespace itk

@@ -96,7 +96,7 @@ TetrahedralMeshToImageFilter<TInputMesh, TOutputImage>::GenerateData()
     if (size[d] < 1 || size[d] > SizeValueType(dcv::MaximumGridExtent))
     {
       itkExceptionMacro("The output grid is " << size << " voxels; each axis needs 1 to " << dcv::MaximumGridExtent
-                                               << " voxels.");
+                                              << " voxels.");
     }
   }
   output->SetBufferedRegion(region);
@@ -109,8 +109,7 @@ TetrahedralMeshToImageFilter<TInputMesh, TOutputImage>::GenerateData()
   const auto *        pointData = mesh->GetPointData();
   if (numberOfPoints > 0 && (pointData == nullptr || pointData->Size() < numberOfPoints))
   {
-    itkExceptionMacro("The mesh has " << numberOfPoints << " points but "
-                                      << (pointData ? pointData->Size() : 0)
+    itkExceptionMacro("The mesh has " << numberOfPoints << " points but " << (pointData ? pointData->Size() : 0)
                                       << " point data values; every point needs its value.");
   }
   std::vector<dcv::GridPoint> points(numberOfPoints);
@@ -180,8 +179,9 @@ TetrahedralMeshToImageFilter<TInputMesh, TOutputImage>::PrintSelf(std::ostream &
   os << indent << "Origin: " << m_Origin << std::endl;
   os << indent << "Direction: " << m_Direction << std::endl;
   os << indent << "ReferenceImage: " << m_ReferenceImage.GetPointer() << std::endl;
-  os << indent << "BackgroundValue: "
-     << static_cast<typename NumericTraits<OutputPixelType>::PrintType>(m_BackgroundValue) << std::endl;
+  os << indent
+     << "BackgroundValue: " << static_cast<typename NumericTraits<OutputPixelType>::PrintType>(m_BackgroundValue)
+     << std::endl;
 }
 
 } // namespace itk

@@ -86,8 +86,8 @@ CheckPoints(const GridSize & grid, const std::vector<GridPoint> & points)
     {
       throw std::invalid_argument("point " + std::to_string(i) + " (" + std::to_string(p[0]) + ", " +
                                   std::to_string(p[1]) + ", " + std::to_string(p[2]) + ") lies outside the " +
-                                  std::to_string(grid.x) + "x" + std::to_string(grid.y) + "x" +
-                                  std::to_string(grid.z) + " grid");
+                                  std::to_string(grid.x) + "x" + std::to_string(grid.y) + "x" + std::to_string(grid.z) +
+                                  " grid");
     }
     const bool cx = p[0] == 0 || p[0] == grid.x - 1;
     const bool cy = p[1] == 0 || p[1] == grid.y - 1;

@@ -208,9 +208,9 @@ SerializeFile(const FileHeader & h, const std::vector<uint8_t> & payload)
   {
     throw std::invalid_argument("the coded payload exceeds 4 GiB");
   }
-  Writer        w;
-  const bool    direction = !IsIdentity(h.direction);
-  const bool    metadata = !h.metadata.empty();
+  Writer     w;
+  const bool direction = !IsIdentity(h.direction);
+  const bool metadata = !h.metadata.empty();
   w.Bytes(Magic, 4);
   w.U8(FileHeader::Version);
   w.U8(uint8_t(h.pixelType));
@@ -299,8 +299,8 @@ ParseFile(const std::vector<uint8_t> & bytes, const std::string & name, FileHead
   h.size.z = r.U16("header");
   if (h.size.x < 2 || h.size.y < 2 || h.size.z < 2)
   {
-    throw FormatError(name + ": absurd volume size " + std::to_string(h.size.x) + "x" + std::to_string(h.size.y) +
-                      "x" + std::to_string(h.size.z) + " (each axis needs at least 2 voxels)");
+    throw FormatError(name + ": absurd volume size " + std::to_string(h.size.x) + "x" + std::to_string(h.size.y) + "x" +
+                      std::to_string(h.size.z) + " (each axis needs at least 2 voxels)");
   }
   for (double & v : h.spacing)
     v = r.F64("header");

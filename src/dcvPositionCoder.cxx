@@ -127,7 +127,8 @@ public:
       // One point, split axis of odd length L = 2c - 1 (c < 8): the bit is "in the first half",
       // of probability floor(L / 2) / L, so P(0) = c / (2c - 1).
       if (c < 8)
-        m_Side[0][c] = BitModel(Shift, uint32_t(double(c) / double(2 * c - 1) * double(BitModel::One) + 0.5), PriorCount);
+        m_Side[0][c] =
+          BitModel(Shift, uint32_t(double(c) / double(2 * c - 1) * double(BitModel::One) + 0.5), PriorCount);
     }
     m_Zero.fill(BitModel(Shift));
     m_Sign.fill(BitModel(Shift));
@@ -166,18 +167,12 @@ public:
 private:
   template <typename Io>
   uint64_t
-  CodeSmall(Io &     io,
-            uint64_t n,
-            uint64_t V,
-            int32_t  length,
-            uint64_t lo,
-            uint64_t hi,
-            uint64_t k)
+  CodeSmall(Io & io, uint64_t n, uint64_t V, int32_t length, uint64_t lo, uint64_t hi, uint64_t k)
   {
     // m = distance of k from the nearer extreme, in unary over its feasible values, then the side.
-    const int density = std::min(BitLength(V / n) - 1, DensityBuckets - 1);
-    auto &    unary = m_Unary[n - 1][density];
-    auto      feasible = [lo, hi](uint64_t v) { return v >= lo && v <= hi; };
+    const int      density = std::min(BitLength(V / n) - 1, DensityBuckets - 1);
+    auto &         unary = m_Unary[n - 1][density];
+    auto           feasible = [lo, hi](uint64_t v) { return v >= lo && v <= hi; };
     const uint64_t half = n / 2;
     uint64_t       lastFeasible = 0;
     for (uint64_t i = 0; i <= half; ++i)
@@ -232,7 +227,7 @@ private:
     {
       return expected;
     }
-    const int negative = io.Bit(m_Sign[c], d < 0);
+    const int      negative = io.Bit(m_Sign[c], d < 0);
     const uint64_t room = negative ? expected - lo : hi - expected; // >= 1 for the encoder
     const uint64_t magnitude = 1 + io.UInt(*m_Magnitude[c], uint32_t((d < 0 ? -d : d) - 1));
     const uint64_t step = std::min(magnitude, room); // garbage is clamped into [lo, hi]
@@ -240,10 +235,10 @@ private:
   }
 
   std::array<std::array<std::array<BitModel, SmallCount / 2 + 1>, DensityBuckets>, SmallCount> m_Unary;
-  std::array<std::array<BitModel, 9>, 3>                                                     m_Side;
-  std::array<BitModel, CountBuckets>                                                         m_Zero;
-  std::array<BitModel, CountBuckets>                                                         m_Sign;
-  std::array<std::unique_ptr<UIntModel>, CountBuckets>                                       m_Magnitude;
+  std::array<std::array<BitModel, 9>, 3>                                                       m_Side;
+  std::array<BitModel, CountBuckets>                                                           m_Zero;
+  std::array<BitModel, CountBuckets>                                                           m_Sign;
+  std::array<std::unique_ptr<UIntModel>, CountBuckets>                                         m_Magnitude;
 };
 
 /** Io of the encoder: codes the given decisions and returns them. */
@@ -300,7 +295,8 @@ SortRaster(std::vector<GridPoint>::iterator begin, std::vector<GridPoint>::itera
 /** Partitions [begin, end) into coding order, coding the splits through `code(n, V, V1, length, k)`. */
 template <typename CodeFunction>
 void
-Traverse(const Box & box, std::vector<GridPoint>::iterator begin, std::vector<GridPoint>::iterator end, CodeFunction & code)
+Traverse(const Box & box, std::vector<GridPoint>::iterator begin, std::vector<GridPoint>::iterator end,
+         CodeFunction & code)
 {
   const uint64_t n = uint64_t(end - begin);
   const uint64_t V = box.Voxels();
@@ -318,10 +314,10 @@ Traverse(const Box & box, std::vector<GridPoint>::iterator begin, std::vector<Gr
     }
     return;
   }
-  const int     axis = box.SplitAxis();
-  const int32_t length = box.hi[axis] - box.lo[axis];
-  const int32_t middle = box.lo[axis] + length / 2;
-  const auto    split = std::partition(begin, end, [axis, middle](const GridPoint & p) { return p[axis] < middle; });
+  const int      axis = box.SplitAxis();
+  const int32_t  length = box.hi[axis] - box.lo[axis];
+  const int32_t  middle = box.lo[axis] + length / 2;
+  const auto     split = std::partition(begin, end, [axis, middle](const GridPoint & p) { return p[axis] < middle; });
   const uint64_t V1 = V / uint64_t(length) * uint64_t(length / 2);
   code(n, V, V1, length, uint64_t(split - begin));
   Box first = box, second = box;
@@ -387,9 +383,9 @@ void
 EncodePositions(ArithmeticEncoder & encoder, const GridSize & grid, std::vector<GridPoint> points)
 {
   CheckInside(grid, points);
-  auto       model = std::make_unique<SplitModel>();
-  EncoderIo  io{ encoder };
-  auto       code = [&model, &io](uint64_t n, uint64_t V, uint64_t V1, int32_t length, uint64_t k) {
+  auto      model = std::make_unique<SplitModel>();
+  EncoderIo io{ encoder };
+  auto      code = [&model, &io](uint64_t n, uint64_t V, uint64_t V1, int32_t length, uint64_t k) {
     model->Code(io, n, V, V1, length, k);
   };
   Traverse(GridBox(grid), points.begin(), points.end(), code);

@@ -29,11 +29,8 @@ namespace dcv
 using namespace RateControl;
 
 BudgetResult
-ApproximateToBudget(RefinementEngine &                         engine,
-                    std::size_t                                payloadBytes,
-                    double                                     q0,
-                    const std::vector<double> &                stepMultiples,
-                    const RefinementEngine::ProgressFunction & progress)
+ApproximateToBudget(RefinementEngine & engine, std::size_t payloadBytes, double q0,
+                    const std::vector<double> & stepMultiples, const RefinementEngine::ProgressFunction & progress)
 {
   const double step = engine.GetParameters().quantizationStep;
   if (!(step > 0.0) || stepMultiples.empty() ||
@@ -54,7 +51,7 @@ ApproximateToBudget(RefinementEngine &                         engine,
   BudgetResult result{ {}, std::size_t(n), 0, step };
   // (size, squared error) of encoded states.
   std::vector<std::pair<double, double>> states;
-  auto encode = [&] {
+  auto                                   encode = [&] {
     result.payload = EncodePayload(engine.GetApproximation(), q0, engine.GetParameters().quantizationStep);
     states.emplace_back(double(result.payload.size()), engine.GetSquaredError());
   };
@@ -162,11 +159,8 @@ ApproximateToBudget(RefinementEngine &                         engine,
 }
 
 BudgetResult
-ApproximateToQuality(RefinementEngine &                         engine,
-                     double                                     squaredError,
-                     double                                     q0,
-                     const DecodedErrorFunction &               decodedError,
-                     const RefinementEngine::ProgressFunction & progress)
+ApproximateToQuality(RefinementEngine & engine, double squaredError, double q0,
+                     const DecodedErrorFunction & decodedError, const RefinementEngine::ProgressFunction & progress)
 {
   const double step = engine.GetParameters().quantizationStep;
   if (!(step > 0.0) || !(squaredError >= 0.0) || !decodedError)

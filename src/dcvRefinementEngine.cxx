@@ -183,7 +183,7 @@ struct RefinementEngine::Impl
     {
       return v;
     }
-    auto at = [&p](double k) { return p.quantizationOrigin + k * p.quantizationStep; };
+    auto   at = [&p](double k) { return p.quantizationOrigin + k * p.quantizationStep; };
     double k = std::round((v - p.quantizationOrigin) / p.quantizationStep);
     while (at(k) > p.valueMax && at(k - 1) >= p.valueMin)
     {
@@ -538,7 +538,7 @@ RefinementEngine::Approximate(std::size_t numberOfPoints, const ProgressFunction
     return progress ? ProgressFunction([&, from, units](double f) {
       progress(std::min(1.0, (double(from) + f * double(units)) / double(total)));
     })
-                    : ProgressFunction();
+                           : ProgressFunction();
   };
   using Clock = std::chrono::steady_clock;
   auto seconds = [](Clock::time_point since) { return std::chrono::duration<double>(Clock::now() - since).count(); };
@@ -599,8 +599,8 @@ RefinementEngine::Refine(std::size_t numberOfPoints, const ProgressFunction & pr
 void
 RefinementEngine::Decimate(std::size_t count)
 {
-  Impl &                             d = *m_Impl;
-  std::priority_queue<RemovalEntry>  heap;
+  Impl &                            d = *m_Impl;
+  std::priority_queue<RemovalEntry> heap;
   for (VertexId v = NumberOfCorners; v < d.mesh.NumberOfVertexIds(); ++v)
   {
     if (d.vertexAlive[v])
@@ -642,7 +642,7 @@ RefinementEngine::Resize(std::size_t numberOfPoints)
     return;
   }
   using Clock = std::chrono::steady_clock;
-  auto  start = Clock::now();
+  auto start = Clock::now();
   if (numberOfPoints < n)
   {
     Decimate(n - numberOfPoints);
@@ -667,7 +667,8 @@ RefinementEngine::SetQuantizationStep(double step)
   Impl & d = *m_Impl;
   if (!(step > 0.0))
   {
-    throw std::invalid_argument("RefinementEngine: the quantization step must be positive, got " + std::to_string(step));
+    throw std::invalid_argument("RefinementEngine: the quantization step must be positive, got " +
+                                std::to_string(step));
   }
   d.parameters.quantizationStep = step;
   for (VertexId v = 0; v < d.mesh.NumberOfVertexIds(); ++v)
@@ -872,7 +873,8 @@ RefinementEngine::GetApproximation() const
   a.tetrahedra.reserve(cells.size());
   for (const auto & c : cells)
   {
-    a.tetrahedra.push_back({ indexOf(c.vertices[0]), indexOf(c.vertices[1]), indexOf(c.vertices[2]), indexOf(c.vertices[3]) });
+    a.tetrahedra.push_back(
+      { indexOf(c.vertices[0]), indexOf(c.vertices[1]), indexOf(c.vertices[2]), indexOf(c.vertices[3]) });
   }
   return a;
 }

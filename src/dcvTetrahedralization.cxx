@@ -79,7 +79,8 @@ struct Tetrahedralization::Impl
     cells.push_back(c);
     if (created)
     {
-      created->push_back(Cell{ id, { c->vertex(0)->info(), c->vertex(1)->info(), c->vertex(2)->info(), c->vertex(3)->info() } });
+      created->push_back(
+        Cell{ id, { c->vertex(0)->info(), c->vertex(1)->info(), c->vertex(2)->info(), c->vertex(3)->info() } });
     }
   }
 
@@ -89,11 +90,14 @@ struct Tetrahedralization::Impl
   RegisterInOrder(std::vector<Cell> & created)
   {
     auto key = [](const CellHandle & c) {
-      std::array<VertexId, 4> k{ c->vertex(0)->info(), c->vertex(1)->info(), c->vertex(2)->info(), c->vertex(3)->info() };
+      std::array<VertexId, 4> k{
+        c->vertex(0)->info(), c->vertex(1)->info(), c->vertex(2)->info(), c->vertex(3)->info()
+      };
       std::sort(k.begin(), k.end());
       return k;
     };
-    std::sort(scratch.begin(), scratch.end(), [&key](const CellHandle & a, const CellHandle & b) { return key(a) < key(b); });
+    std::sort(
+      scratch.begin(), scratch.end(), [&key](const CellHandle & a, const CellHandle & b) { return key(a) < key(b); });
     for (const CellHandle & c : scratch)
     {
       Register(c, &created);
@@ -122,8 +126,8 @@ Tetrahedralization::~Tetrahedralization() = default;
 void
 Tetrahedralization::InsertMany(const std::vector<GridPoint> & points)
 {
-  Impl &                                           d = *m_Impl;
-  std::vector<std::pair<CgalPoint, VertexId>>      input;
+  Impl &                                      d = *m_Impl;
+  std::vector<std::pair<CgalPoint, VertexId>> input;
   input.reserve(points.size());
   const VertexId first = VertexId(d.points.size());
   for (std::size_t i = 0; i < points.size(); ++i)
@@ -152,7 +156,7 @@ Tetrahedralization::Insert(const GridPoint & p, CellId hint, std::vector<CellId>
   Impl & d = *m_Impl;
   killed.clear();
   created.clear();
-  const VertexId id = VertexId(d.points.size());
+  const VertexId  id = VertexId(d.points.size());
   const CgalPoint q = ToCgal(p);
   if (d.dt.dimension() < 3)
   {
@@ -248,7 +252,8 @@ Tetrahedralization::FiniteCells() const
   out.reserve(m_Impl->dt.number_of_finite_cells());
   for (auto c = m_Impl->dt.finite_cells_begin(); c != m_Impl->dt.finite_cells_end(); ++c)
   {
-    out.push_back(Cell{ c->info().id, { c->vertex(0)->info(), c->vertex(1)->info(), c->vertex(2)->info(), c->vertex(3)->info() } });
+    out.push_back(
+      Cell{ c->info().id, { c->vertex(0)->info(), c->vertex(1)->info(), c->vertex(2)->info(), c->vertex(3)->info() } });
   }
   // By id: an order that does not depend on memory addresses (see RegisterInOrder).
   std::sort(out.begin(), out.end(), [](const Cell & a, const Cell & b) { return a.id < b.id; });

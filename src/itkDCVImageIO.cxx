@@ -161,8 +161,9 @@ DCVImageIO::Write(const void * buffer)
       auto image = ImageType::New();
       CopyDCVGeometry(geometry, image.GetPointer());
       image->SetBufferedRegion(image->GetLargestPossibleRegion());
-      image->GetPixelContainer()->SetImportPointer(
-        static_cast<decltype(pixel) *>(const_cast<void *>(buffer)), image->GetLargestPossibleRegion().GetNumberOfPixels(), false);
+      image->GetPixelContainer()->SetImportPointer(static_cast<decltype(pixel) *>(const_cast<void *>(buffer)),
+                                                   image->GetLargestPossibleRegion().GetNumberOfPixels(),
+                                                   false);
       m_LastResult = DCVEncode(image.GetPointer(), m_Options);
     });
     dcv::WriteFileAtomically(m_FileName, m_LastResult.bytes);
@@ -218,7 +219,7 @@ DCVImageIOFactory::RegisterOneFactory()
 
 // Entry point of ITK's factory registration (FACTORY_NAMES ImageIO::DCV in a build inside ITK).
 void DelaunayCompression_EXPORT
-     DCVImageIOFactoryRegister__Private()
+DCVImageIOFactoryRegister__Private()
 {
   DCVImageIOFactory::RegisterOneFactory();
 }

@@ -164,7 +164,8 @@ DCVMeshIO::WritePointData(void * buffer)
   {
     itkExceptionMacro("Cannot write '" << m_FileName << "': .dcv point data must be scalar values.");
   }
-  ToDouble(buffer, this->GetPointPixelComponentType(), this->GetNumberOfPointPixels(), m_Values, "'" + m_FileName + "'");
+  ToDouble(
+    buffer, this->GetPointPixelComponentType(), this->GetNumberOfPointPixels(), m_Values, "'" + m_FileName + "'");
 }
 
 void
@@ -217,7 +218,8 @@ DCVMeshIO::Write()
   try
   {
     dcv::CheckPoints(a.grid, a.points);
-    dcv::WriteFileAtomically(m_FileName, dcv::SerializeFile(h, dcv::EncodePayload(a, m_QuantizationOrigin, m_QuantizationStep)));
+    dcv::WriteFileAtomically(m_FileName,
+                             dcv::SerializeFile(h, dcv::EncodePayload(a, m_QuantizationOrigin, m_QuantizationStep)));
   }
   catch (const std::exception & e)
   {
@@ -233,8 +235,14 @@ DCVMeshIO::GetDecodedPixelType() const
     return m_DecodedPixelType;
   }
   dcv::PixelType type = m_DecodedPixelType;
-  for (auto candidate : { dcv::PixelType::UInt8, dcv::PixelType::Int8, dcv::PixelType::UInt16, dcv::PixelType::Int16,
-                          dcv::PixelType::UInt32, dcv::PixelType::Int32, dcv::PixelType::Float32, dcv::PixelType::Float64 })
+  for (auto candidate : { dcv::PixelType::UInt8,
+                          dcv::PixelType::Int8,
+                          dcv::PixelType::UInt16,
+                          dcv::PixelType::Int16,
+                          dcv::PixelType::UInt32,
+                          dcv::PixelType::Int32,
+                          dcv::PixelType::Float32,
+                          dcv::PixelType::Float64 })
   {
     dcv::VisitPixelType(candidate, [&](auto pixel) {
       if (dynamic_cast<const Image<decltype(pixel), 3> *>(m_ReferenceImage.GetPointer()))
@@ -281,7 +289,7 @@ DCVMeshIOFactory::RegisterOneFactory()
 }
 
 void DelaunayCompression_EXPORT
-     DCVMeshIOFactoryRegister__Private()
+DCVMeshIOFactoryRegister__Private()
 {
   DCVMeshIOFactory::RegisterOneFactory();
 }

@@ -23,7 +23,7 @@
 #include "itkDCVMeshIOFactory.h"
 
 extern "C" DelaunayCompression_EXPORT itk::ObjectFactoryBase *
-itkLoad()
+                                      itkLoad()
 {
   itk::DCVMeshIOFactory::RegisterOneFactory();
   // ITK takes a reference of its own; ours keeps the factory alive as long as the library is loaded.

@@ -87,9 +87,9 @@ TEST(ArithmeticCoder, RandomBitsRoundTripNearTheEntropy)
   const std::vector<double> probabilities{ 0.5, 0.7, 0.9, 0.99, 0.999, 0.01, 0.0001, 1.0, 0.0 };
   for (double p1 : probabilities)
   {
-    std::mt19937                           random(12345);
-    std::bernoulli_distribution            bit(p1);
-    std::vector<int>                       bits(100000);
+    std::mt19937                random(12345);
+    std::bernoulli_distribution bit(p1);
+    std::vector<int>            bits(100000);
     for (int & b : bits)
       b = bit(random);
     for (int shift : { 4, 5, 7 })
@@ -125,14 +125,14 @@ TEST(ArithmeticCoder, RandomBitsRoundTripNearTheEntropy)
 
 TEST(ArithmeticCoder, InterleavedModelsAndEquiprobableValues)
 {
-  std::mt19937                     random(7);
-  const int                        count = 50000;
-  std::vector<int>                 kind(count), bits(count), widths(count);
-  std::vector<uint32_t>            values(count);
+  std::mt19937                       random(7);
+  const int                          count = 50000;
+  std::vector<int>                   kind(count), bits(count), widths(count);
+  std::vector<uint32_t>              values(count);
   std::uniform_int_distribution<int> width(0, 32);
   for (int i = 0; i < count; ++i)
   {
-    kind[i] = int(random() % 4);                                   // model 0..2, or equiprobable
+    kind[i] = int(random() % 4); // model 0..2, or equiprobable
     bits[i] = int(random() % 100 < (kind[i] == 0 ? 3 : kind[i] == 1 ? 50 : 97));
     widths[i] = width(random);
     values[i] = widths[i] == 32 ? uint32_t(random()) : uint32_t(random()) & ((1u << widths[i]) - 1u);
@@ -184,20 +184,28 @@ TEST(ArithmeticCoder, EmptyStreamAndEmptyInput)
 
 TEST(ArithmeticCoder, IntegersOfAllMagnitudes)
 {
-  std::vector<uint32_t> unsignedValues{ 0, 1, 2, 3, 4, 5, 7, 8, 100, 255, 256, 65535, 65536, 0x7FFFFFFFu, 0x80000000u,
-                                        0xFFFFFFFEu, 0xFFFFFFFFu };
+  std::vector<uint32_t> unsignedValues{ 0,   1,   2,     3,     4,           5,           7,           8,          100,
+                                        255, 256, 65535, 65536, 0x7FFFFFFFu, 0x80000000u, 0xFFFFFFFEu, 0xFFFFFFFFu };
   for (int b = 0; b < 32; ++b)
   {
     unsignedValues.push_back(1u << b);
     unsignedValues.push_back((1u << b) - 1u);
     unsignedValues.push_back((1u << b) + 1u);
   }
-  std::vector<int32_t> signedValues{ 0, 1, -1, 2, -2, 1000, -1000, std::numeric_limits<int32_t>::max(),
-                                     std::numeric_limits<int32_t>::min(), std::numeric_limits<int32_t>::min() + 1 };
-  std::mt19937 random(99);
+  std::vector<int32_t> signedValues{ 0,
+                                     1,
+                                     -1,
+                                     2,
+                                     -2,
+                                     1000,
+                                     -1000,
+                                     std::numeric_limits<int32_t>::max(),
+                                     std::numeric_limits<int32_t>::min(),
+                                     std::numeric_limits<int32_t>::min() + 1 };
+  std::mt19937         random(99);
   for (int i = 0; i < 20000; ++i)
   {
-    const int bits = int(random() % 33);
+    const int      bits = int(random() % 33);
     const uint32_t v = bits == 0 ? 0u : uint32_t(random()) >> (32 - bits);
     unsignedValues.push_back(v);
     signedValues.push_back(int32_t(v));
@@ -266,8 +274,13 @@ TEST(ArithmeticCoder, TruncatedIntegerStreamsAreDetected)
 TEST(PositionCoder, SmallBoxesEveryCase)
 {
   // Every subset of the voxels of small boxes, including 1x1x1 and the 2x2x2 cube.
-  for (const GridSize grid : { GridSize{ 1, 1, 1 }, GridSize{ 2, 1, 1 }, GridSize{ 1, 3, 1 }, GridSize{ 1, 1, 5 },
-                               GridSize{ 2, 2, 2 }, GridSize{ 3, 2, 2 }, GridSize{ 1, 3, 4 } })
+  for (const GridSize grid : { GridSize{ 1, 1, 1 },
+                               GridSize{ 2, 1, 1 },
+                               GridSize{ 1, 3, 1 },
+                               GridSize{ 1, 1, 5 },
+                               GridSize{ 2, 2, 2 },
+                               GridSize{ 3, 2, 2 },
+                               GridSize{ 1, 3, 4 } })
   {
     const uint32_t voxels = uint32_t(grid.NumberOfVoxels());
     for (uint32_t mask = 0; mask < (1u << voxels); ++mask)
@@ -285,17 +298,21 @@ TEST(PositionCoder, SmallBoxesEveryCase)
 
 TEST(PositionCoder, EmptyFullAndDegenerateGrids)
 {
-  for (const GridSize grid : { GridSize{ 1, 1, 1 }, GridSize{ 17, 9, 4 }, GridSize{ 300, 2, 2 }, GridSize{ 1, 1, 1000 },
-                               GridSize{ 2, 1000, 1 }, GridSize{ 64, 64, 64 } })
+  for (const GridSize grid : { GridSize{ 1, 1, 1 },
+                               GridSize{ 17, 9, 4 },
+                               GridSize{ 300, 2, 2 },
+                               GridSize{ 1, 1, 1000 },
+                               GridSize{ 2, 1000, 1 },
+                               GridSize{ 64, 64, 64 } })
   {
     CheckPositionRoundTrip(grid, {});
     const auto full = BernoulliPoints(grid, 2.0, 1); // every voxel
     ASSERT_EQ(full.size(), grid.NumberOfVoxels());
     EXPECT_LE(CheckPositionRoundTrip(grid, full), 4u); // nothing but the flush
-    CheckPositionRoundTrip(grid, test::Corners(grid).size() <= grid.NumberOfVoxels() && grid.x > 1 && grid.y > 1 &&
-                                     grid.z > 1
-                                   ? test::Corners(grid)
-                                   : std::vector<GridPoint>{ { grid.x - 1, grid.y - 1, grid.z - 1 } });
+    CheckPositionRoundTrip(grid,
+                           test::Corners(grid).size() <= grid.NumberOfVoxels() && grid.x > 1 && grid.y > 1 && grid.z > 1
+                             ? test::Corners(grid)
+                             : std::vector<GridPoint>{ { grid.x - 1, grid.y - 1, grid.z - 1 } });
   }
   // A grid with an empty axis holds no point.
   CheckPositionRoundTrip(GridSize{ 0, 5, 5 }, {});
@@ -305,8 +322,11 @@ TEST(PositionCoder, EmptyFullAndDegenerateGrids)
 TEST(PositionCoder, RandomSetsOfManyDensities)
 {
   unsigned seed = 1;
-  for (const GridSize grid : { GridSize{ 300, 2, 2 }, GridSize{ 2, 3, 300 }, GridSize{ 31, 17, 9 },
-                               GridSize{ 64, 64, 64 }, GridSize{ 5, 200, 7 } })
+  for (const GridSize grid : { GridSize{ 300, 2, 2 },
+                               GridSize{ 2, 3, 300 },
+                               GridSize{ 31, 17, 9 },
+                               GridSize{ 64, 64, 64 },
+                               GridSize{ 5, 200, 7 } })
   {
     for (double density : { 0.0005, 0.003, 0.02, 0.1, 0.3, 0.5, 0.7, 0.9, 0.99, 0.9995 })
     {
@@ -373,9 +393,9 @@ TEST(PositionCoder, InvalidInputThrows)
 
 TEST(PositionCoder, TruncatedStreamsAreDetectedWithoutCrashing)
 {
-  const GridSize grid{ 40, 30, 20 };
-  const auto     points = test::RandomPoints(grid, 300, 21);
-  const auto     bytes = EncodeToBytes(grid, points);
+  const GridSize         grid{ 40, 30, 20 };
+  const auto             points = test::RandomPoints(grid, 300, 21);
+  const auto             bytes = EncodeToBytes(grid, points);
   std::vector<GridPoint> expected = points;
   SortPositions(grid, expected);
   for (std::size_t length = 0; length < bytes.size(); ++length)
@@ -426,12 +446,12 @@ CheckRealPointSet(const std::string & name)
   engine.Refine(volume.grid.NumberOfVoxels() / 600);
   const auto points = engine.GetApproximation().points;
 
-  const auto           t0 = std::chrono::steady_clock::now();
-  const auto           bytes = EncodeToBytes(volume.grid, points);
-  const auto           t1 = std::chrono::steady_clock::now();
-  ArithmeticDecoder    decoder(bytes.data(), bytes.size());
-  const auto           decoded = DecodePositions(decoder, volume.grid, uint32_t(points.size()));
-  const auto           t2 = std::chrono::steady_clock::now();
+  const auto             t0 = std::chrono::steady_clock::now();
+  const auto             bytes = EncodeToBytes(volume.grid, points);
+  const auto             t1 = std::chrono::steady_clock::now();
+  ArithmeticDecoder      decoder(bytes.data(), bytes.size());
+  const auto             decoded = DecodePositions(decoder, volume.grid, uint32_t(points.size()));
+  const auto             t2 = std::chrono::steady_clock::now();
   std::vector<GridPoint> expected = points;
   SortPositions(volume.grid, expected);
   EXPECT_EQ(decoded, expected);
@@ -442,8 +462,8 @@ CheckRealPointSet(const std::string & name)
   const double bound = Log2Binomial(double(volume.grid.NumberOfVoxels()), n) / n;
   const auto   random = test::RandomPoints(volume.grid, points.size() - 8, 1);
   const double randomBitsPerPoint = 8.0 * double(EncodeToBytes(volume.grid, random).size()) / n;
-  std::cout << name << ": " << points.size() << " points, " << bitsPerPoint << " bits/point (random set: "
-            << randomBitsPerPoint << "), log2 C(N, n) / n = " << bound << "; encode "
+  std::cout << name << ": " << points.size() << " points, " << bitsPerPoint
+            << " bits/point (random set: " << randomBitsPerPoint << "), log2 C(N, n) / n = " << bound << "; encode "
             << std::chrono::duration<double, std::milli>(t1 - t0).count() << " ms, decode "
             << std::chrono::duration<double, std::milli>(t2 - t1).count() << " ms" << std::endl;
   EXPECT_LT(bitsPerPoint, bound) << name;

@@ -38,9 +38,8 @@ protected:
   void
   SetUp() override
   {
-    m_Directory = fs::temp_directory_path() /
-                  ("dcv-cli-" + std::to_string(::getpid()) + "-" +
-                   ::testing::UnitTest::GetInstance()->current_test_info()->name());
+    m_Directory = fs::temp_directory_path() / ("dcv-cli-" + std::to_string(::getpid()) + "-" +
+                                               ::testing::UnitTest::GetInstance()->current_test_info()->name());
     fs::remove_all(m_Directory);
     fs::create_directories(m_Directory);
   }
@@ -292,9 +291,9 @@ TEST_F(CommandLine, BadCompressedFiles)
   ASSERT_EQ(RunDcv("phantom " + phantom + " --size 24").status, 0);
   const std::string packed = Path("good.dcv");
   ASSERT_EQ(RunDcv("compress " + phantom + " " + packed + " --points 100").status, 0);
-  std::ifstream        in(packed, std::ios::binary);
-  std::vector<char>    bytes((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
-  auto                 write = [&](const std::string & name, const std::vector<char> & b) {
+  std::ifstream     in(packed, std::ios::binary);
+  std::vector<char> bytes((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
+  auto              write = [&](const std::string & name, const std::vector<char> & b) {
     std::ofstream(Path(name), std::ios::binary).write(b.data(), std::streamsize(b.size()));
     return Path(name);
   };

@@ -223,12 +223,8 @@ TEST(Codec, PayloadDecodesToTheEngineOutputBitForBit)
 /** ApproximateToBudget on a volume: the payload fits `bpv` bits per voxel (less the header),
  * fills at least 97% of it, and is the engine's final approximation, decoded bit for bit. */
 void
-ExpectBudgetMet(const std::vector<float> & image,
-                const GridSize &           grid,
-                double                     peak,
-                double                     q,
-                double                     bpv,
-                Mode                       mode = Mode::Best)
+ExpectBudgetMet(const std::vector<float> & image, const GridSize & grid, double peak, double q, double bpv,
+                Mode mode = Mode::Best)
 {
   RefinementParameters p = ParametersForMode(mode);
   const auto           range = std::minmax_element(image.begin(), image.end());

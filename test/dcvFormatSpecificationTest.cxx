@@ -117,15 +117,14 @@ DecodeWithTheLibrary(const std::string & path)
   d.bytes = ReadWholeFile(path);
   ParseFile(d.bytes, path, d.header, d.payload);
   const FileHeader & h = d.header;
-  d.approximation =
-    DecodePayload(d.payload, h.size, h.numberOfPoints, h.quantizationOrigin, h.quantizationStep, path);
+  d.approximation = DecodePayload(d.payload, h.size, h.numberOfPoints, h.quantizationOrigin, h.quantizationStep, path);
   return d;
 }
 
 /** The reference decoder's output, split into header fields and point lines. */
 struct Reference
 {
-  std::map<std::string, std::vector<std::string>> fields; // name -> tokens
+  std::map<std::string, std::vector<std::string>> fields;   // name -> tokens
   std::vector<std::string>                        metadata; // the text after "metadata ", per pair
   std::vector<std::vector<std::string>>           points;   // tokens per point line
 };
@@ -175,9 +174,8 @@ protected:
                    << "'): cannot run the reference decoder " << DCV_REFERENCE_DECODER
                    << "; install python3 (scripts/setup.sh) and reconfigure";
     }
-    m_Directory = fs::temp_directory_path() /
-                  ("dcv-spec-" + std::to_string(::getpid()) + "-" +
-                   ::testing::UnitTest::GetInstance()->current_test_info()->name());
+    m_Directory = fs::temp_directory_path() / ("dcv-spec-" + std::to_string(::getpid()) + "-" +
+                                               ::testing::UnitTest::GetInstance()->current_test_info()->name());
     fs::remove_all(m_Directory);
     fs::create_directories(m_Directory);
   }
@@ -275,8 +273,7 @@ protected:
     EXPECT_EQ(type.empty() ? "" : type[0], std::to_string(int(h.pixelType)));
     EXPECT_EQ(field("flags"), Tokens{ std::to_string(flags) });
     EXPECT_EQ(mode.empty() ? "" : mode[0], std::to_string(int(h.mode)));
-    EXPECT_EQ(field("size"),
-              (Tokens{ std::to_string(h.size.x), std::to_string(h.size.y), std::to_string(h.size.z) }));
+    EXPECT_EQ(field("size"), (Tokens{ std::to_string(h.size.x), std::to_string(h.size.y), std::to_string(h.size.z) }));
     EXPECT_EQ(numbers(field("spacing")), std::vector<double>(h.spacing.begin(), h.spacing.end()));
     EXPECT_EQ(numbers(field("origin")), std::vector<double>(h.origin.begin(), h.origin.end()));
     EXPECT_EQ(numbers(field("direction")), std::vector<double>(h.direction.begin(), h.direction.end()));
@@ -292,7 +289,8 @@ protected:
     ASSERT_EQ(r.points.size(), a.points.size());
     for (std::size_t i = 0; i < a.points.size(); ++i)
     {
-      const Tokens expected{ std::to_string(a.points[i][0]), std::to_string(a.points[i][1]),
+      const Tokens expected{ std::to_string(a.points[i][0]),
+                             std::to_string(a.points[i][1]),
                              std::to_string(a.points[i][2]) };
       ASSERT_EQ(r.points[i].size(), 4u) << "point " << i;
       ASSERT_EQ(Tokens(r.points[i].begin(), r.points[i].begin() + 3), expected) << "point " << i << " of " << path;
@@ -420,8 +418,8 @@ TEST_F(FormatSpecification, DamagedFilesAreRefused)
   const std::vector<uint8_t> & payload = d.payload;
 
   auto write = [this](const std::string & name, const std::vector<uint8_t> & content) {
-    std::ofstream(Path(name), std::ios::binary).write(reinterpret_cast<const char *>(content.data()),
-                                                      std::streamsize(content.size()));
+    std::ofstream(Path(name), std::ios::binary)
+      .write(reinterpret_cast<const char *>(content.data()), std::streamsize(content.size()));
     return Path(name);
   };
   auto expectRefused = [&](const std::string & file, const std::string & phrase, bool withNeighbours) {

@@ -125,9 +125,11 @@ TEST(Rasterizer, EveryVoxelOwnedOnceOnDegenerateLattices)
 
 TEST(Rasterizer, LinearFunctionInterpolatesVertexValues)
 {
-  const std::array<GridPoint, 4> p{ GridPoint{ 3, 1, 0 }, GridPoint{ 0, 0, 0 }, GridPoint{ 0, 5, 2 }, GridPoint{ 1, 1, 7 } };
-  const std::array<double, 4>    v{ 10.0, -2.0, 4.5, 100.0 };
-  const LinearFunction           L{ CanonicalTetrahedron(p, v) };
+  const std::array<GridPoint, 4> p{
+    GridPoint{ 3, 1, 0 }, GridPoint{ 0, 0, 0 }, GridPoint{ 0, 5, 2 }, GridPoint{ 1, 1, 7 }
+  };
+  const std::array<double, 4> v{ 10.0, -2.0, 4.5, 100.0 };
+  const LinearFunction        L{ CanonicalTetrahedron(p, v) };
   for (int i = 0; i < 4; ++i)
   {
     EXPECT_NEAR(L(p[i][0], p[i][1], p[i][2]), v[i], 1e-12);
@@ -154,8 +156,10 @@ TEST(Rasterizer, ConvertValueRoundsAndClamps)
 TEST(Rasterizer, FlatTetrahedronOwnsNothing)
 {
   const GridSize                 grid{ 4, 4, 4 };
-  const std::array<GridPoint, 4> flat{ GridPoint{ 0, 0, 0 }, GridPoint{ 3, 0, 0 }, GridPoint{ 0, 3, 0 }, GridPoint{ 3, 3, 0 } };
-  int                            spans = 0;
+  const std::array<GridPoint, 4> flat{
+    GridPoint{ 0, 0, 0 }, GridPoint{ 3, 0, 0 }, GridPoint{ 0, 3, 0 }, GridPoint{ 3, 3, 0 }
+  };
+  int spans = 0;
   ForEachSpan(grid, flat, [&](int32_t, int32_t, int32_t, int32_t) { ++spans; });
   EXPECT_EQ(spans, 0);
 }

@@ -111,9 +111,7 @@ TEST(RefinementEngine, CellErrorsSumToTheBruteForceTotal)
 
 /** Engine output against a decoder that knows only the points and values. */
 void
-ExpectDecoderEqualsEngine(const std::vector<float> &   image,
-                          const GridSize &             grid,
-                          std::size_t                  points,
+ExpectDecoderEqualsEngine(const std::vector<float> & image, const GridSize & grid, std::size_t points,
                           const RefinementParameters & parameters = {})
 {
   RefinementEngine engine(image.data(), grid, parameters);
@@ -368,9 +366,9 @@ TEST(RefinementEngine, ErrorDecreasesAsPointsAreAdded)
 {
   DCV_REQUIRE_DATA("head-mr.nrrd");
   const test::Volume v = test::ReadVolume("head-mr.nrrd");
-  RefinementEngine      engine(v.voxels.data(), v.grid);
-  double                previous = engine.GetSquaredError();
-  double                psnr = PSNR(previous, v.grid.NumberOfVoxels(), v.peak);
+  RefinementEngine   engine(v.voxels.data(), v.grid);
+  double             previous = engine.GetSquaredError();
+  double             psnr = PSNR(previous, v.grid.NumberOfVoxels(), v.peak);
   for (std::size_t n = 50; n <= 6400; n *= 2)
   {
     engine.Refine(n);

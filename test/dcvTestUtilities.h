@@ -62,10 +62,10 @@ HaveData(const std::string & name)
 }
 
 /** Skips the calling test, with the reason, when a shared volume is not there. */
-#define DCV_REQUIRE_DATA(name)                                                                                     \
-  if (!dcv::test::HaveData(name))                                                                               \
-  {                                                                                                                \
-    GTEST_SKIP() << "needs " << dcv::test::DataFile(name) << " (../shared/data is absent)";                     \
+#define DCV_REQUIRE_DATA(name)                                                                                         \
+  if (!dcv::test::HaveData(name))                                                                                      \
+  {                                                                                                                    \
+    GTEST_SKIP() << "needs " << dcv::test::DataFile(name) << " (../shared/data is absent)";                            \
   }
 
 inline Volume
@@ -97,8 +97,8 @@ struct Result
 inline Result
 RunCommand(const std::string & command)
 {
-  FILE *            pipe = ::popen(command.c_str(), "r");
-  Result            r{ -1, "" };
+  FILE * pipe = ::popen(command.c_str(), "r");
+  Result r{ -1, "" };
   if (!pipe)
     return r;
   char buffer[4096];
@@ -155,9 +155,8 @@ class TemporaryDirectory
 {
 public:
   TemporaryDirectory()
-    : m_Path(std::filesystem::temp_directory_path() /
-             ("dcv-test-" + std::to_string(::getpid()) + "-" +
-              ::testing::UnitTest::GetInstance()->current_test_info()->name()))
+    : m_Path(std::filesystem::temp_directory_path() / ("dcv-test-" + std::to_string(::getpid()) + "-" +
+                                                       ::testing::UnitTest::GetInstance()->current_test_info()->name()))
   {
     std::filesystem::remove_all(m_Path);
     std::filesystem::create_directories(m_Path);

@@ -55,10 +55,10 @@ TEST(Tetrahedralization, UniqueWhateverTheInsertionOrder)
 
 TEST(Tetrahedralization, IncrementalInsertionReportsTheCavity)
 {
-  const GridSize               grid{ 12, 10, 9 };
-  const std::vector<GridPoint> points = test::RandomPoints(grid, 150, 11);
-  Tetrahedralization           mesh;
-  std::vector<uint32_t>        killed;
+  const GridSize                        grid{ 12, 10, 9 };
+  const std::vector<GridPoint>          points = test::RandomPoints(grid, 150, 11);
+  Tetrahedralization                    mesh;
+  std::vector<uint32_t>                 killed;
   std::vector<Tetrahedralization::Cell> created;
   std::set<uint32_t>                    alive;
   for (const GridPoint & p : points)

@@ -229,9 +229,8 @@ TEST(DCVMeshIO, MeshRoundTripThroughMeshFileWriterAndReader)
   };
   const auto before = rasterize(approximate->GetOutput());
   const auto after = rasterize(mesh);
-  EXPECT_TRUE(std::equal(before->GetBufferPointer(),
-                         before->GetBufferPointer() + grid.NumberOfVoxels(),
-                         after->GetBufferPointer()));
+  EXPECT_TRUE(std::equal(
+    before->GetBufferPointer(), before->GetBufferPointer() + grid.NumberOfVoxels(), after->GetBufferPointer()));
 
   // A mesh off the grid, or no grid at all, is refused with a clear error and no file.
   std::filesystem::remove(path);

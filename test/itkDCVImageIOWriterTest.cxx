@@ -62,17 +62,18 @@ TEST(DCVImageIO, ImageFileWriterWritesWhatTheToolWrites)
   Write(image.GetPointer(), input);
   struct Case
   {
-    std::string                                 flags;
-    std::function<void(itk::DCVImageIO &)>      set;
+    std::string                            flags;
+    std::function<void(itk::DCVImageIO &)> set;
   };
   const std::vector<Case> cases{
     { "--bpv 0.125", nullptr }, // the IO's default
     { "--bpv 0.07", [](itk::DCVImageIO & io) { io.SetBitsPerVoxel(0.07); } },
     { "--psnr 27", [](itk::DCVImageIO & io) { io.SetPSNR(27.0); } },
-    { "--points 300 -m dec", [](itk::DCVImageIO & io) {
-       io.SetNumberOfPoints(300);
-       io.SetMode(dcv::Mode::Dec);
-     } },
+    { "--points 300 -m dec",
+      [](itk::DCVImageIO & io) {
+        io.SetNumberOfPoints(300);
+        io.SetMode(dcv::Mode::Dec);
+      } },
   };
   for (const auto & c : cases)
   {
@@ -173,15 +174,14 @@ TEST(Encoder, ReportsThePSNRTheDecoderGives)
   const auto          image = Phantom({ 32, 30, 24 });
   dcv::EncoderOptions options;
   options.bitsPerVoxel = 0.1;
-  const auto r = itk::DCVEncode(image.GetPointer(), options);
+  const auto          r = itk::DCVEncode(image.GetPointer(), options);
   dcv::CompressedFile file;
   file.name = "encoded";
   dcv::ParseFile(r.bytes, file.name, file.header, file.payload);
   std::vector<uint8_t> decoded(image->GetBufferedRegion().GetNumberOfPixels());
   dcv::Rasterize(dcv::Decode(file), decoded.data());
-  const double psnr = dcv::PSNR(dcv::SquaredError(image->GetBufferPointer(), decoded.data(), decoded.size()),
-                                decoded.size(),
-                                255.0);
+  const double psnr =
+    dcv::PSNR(dcv::SquaredError(image->GetBufferPointer(), decoded.data(), decoded.size()), decoded.size(), 255.0);
   EXPECT_EQ(r.psnr, psnr);
   EXPECT_EQ(r.header.numberOfPoints, file.header.numberOfPoints);
   EXPECT_LE(r.bytes.size(), std::size_t(0.1 * decoded.size() / 8));

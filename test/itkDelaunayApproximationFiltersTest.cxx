@@ -94,7 +94,10 @@ TEST(DelaunayApproximationImageToMeshFilter, RefusesBadParameters)
     catch (const itk::ExceptionObject & e)
     {
       EXPECT_NE(std::string(e.GetDescription()).find("must be positive"), std::string::npos) << e.GetDescription();
-      EXPECT_NE(std::string(e.GetDescription()).find(which == 0 ? "Alpha" : which == 3 ? "BitsPerVoxel" : "Sigma"),
+      EXPECT_NE(std::string(e.GetDescription())
+                  .find(which == 0   ? "Alpha"
+                        : which == 3 ? "BitsPerVoxel"
+                                     : "Sigma"),
                 std::string::npos);
     }
   }
@@ -176,7 +179,7 @@ TEST(DelaunayApproximationImageToMeshFilter, MeshInPhysicalSpaceDecodesToTheEngi
   EXPECT_EQ(decoded->GetLargestPossibleRegion(), image->GetLargestPossibleRegion());
   EXPECT_EQ(decoded->GetDirection(), image->GetDirection());
 
-  std::vector<float> voxels(image->GetBufferPointer(), image->GetBufferPointer() + grid.NumberOfVoxels());
+  std::vector<float>    voxels(image->GetBufferPointer(), image->GetBufferPointer() + grid.NumberOfVoxels());
   dcv::RefinementEngine engine(voxels.data(), grid);
   engine.Refine(600);
   std::vector<uint8_t> expected(grid.NumberOfVoxels());
@@ -228,7 +231,7 @@ TEST(DelaunayApproximationImageToMeshFilter, AbortStopsTheRefinement)
 MeshType::Pointer
 SmallMesh()
 {
-  auto mesh = MeshType::New();
+  auto                              mesh = MeshType::New();
   const std::vector<dcv::GridPoint> corners = dcv::test::Corners(dcv::GridSize{ 4, 4, 4 });
   for (std::size_t i = 0; i < corners.size(); ++i)
   {

@@ -114,7 +114,8 @@ CheckOutput(const std::string & output, bool force, bool dcvFile)
   }
   else if (!itk::ImageIOFactory::CreateImageIO(output.c_str(), itk::IOFileModeEnum::WriteMode))
   {
-    throw Failure("cannot write " + Quoted(output) + ": no image format is known for that file name "
+    throw Failure("cannot write " + Quoted(output) +
+                  ": no image format is known for that file name "
                   "(use .nrrd, .nii.gz, .mha, ...)");
   }
 }

@@ -69,20 +69,19 @@ Approximate(const ApproximateOptions & a)
   });
 }
 
-const RegisterCommand approximate{ { "approximate",
-                                     "Approximate a volume by a linear spline over an adaptive Delaunay "
-                                     "tetrahedralization and write the approximation with the input's geometry and "
-                                     "pixel type; prints points, PSNR and seconds",
-                                     [](CLI::App & command) -> std::function<void()> {
-                                       auto a = std::make_shared<ApproximateOptions>();
-                                       AddMethodOptions(command, a->input, a->method);
-                                       command.add_option("OUTPUT", a->output, "Output volume (format from its extension)")
-                                         ->required();
-                                       command
-                                         .add_option("--points,-n", a->method.encoder.numberOfPoints,
-                                                     "Number of significant points (at least 8)")
-                                         ->capture_default_str();
-                                       return [a] { Approximate(*a); };
-                                     } } };
+const RegisterCommand approximate{
+  { "approximate",
+    "Approximate a volume by a linear spline over an adaptive Delaunay "
+    "tetrahedralization and write the approximation with the input's geometry and "
+    "pixel type; prints points, PSNR and seconds",
+    [](CLI::App & command) -> std::function<void()> {
+      auto a = std::make_shared<ApproximateOptions>();
+      AddMethodOptions(command, a->input, a->method);
+      command.add_option("OUTPUT", a->output, "Output volume (format from its extension)")->required();
+      command.add_option("--points,-n", a->method.encoder.numberOfPoints, "Number of significant points (at least 8)")
+        ->capture_default_str();
+      return [a] { Approximate(*a); };
+    } }
+};
 } // namespace
 } // namespace dcv::tools

@@ -37,8 +37,8 @@ namespace dcv::tools
  * and returns what runs it once the arguments are parsed. */
 struct Command
 {
-  std::string                                  name;
-  std::string                                  description;
+  std::string                                              name;
+  std::string                                              description;
   std::function<std::function<void()>(CLI::App & command)> setup;
 };
 

@@ -38,7 +38,7 @@ Decompress(const DecompressOptions & d)
 {
   const CompressedFile file = ReadCompressedFile(d.input);
   CheckOutput(d.output, d.force);
-  const auto start = std::chrono::steady_clock::now();
+  const auto          start = std::chrono::steady_clock::now();
   const Approximation a = Decode(file);
   VisitPixelType(file.header.pixelType, [&](auto pixel) {
     auto image = itk::Image<decltype(pixel), 3>::New();
@@ -54,17 +54,18 @@ Decompress(const DecompressOptions & d)
   }
 }
 
-const RegisterCommand decompress{ { "decompress",
-                                    "Decode a .dcv file into any image format ITK writes (gzip-compressed where the "
-                                    "format allows)",
-                                    [](CLI::App & command) -> std::function<void()> {
-                                      auto d = std::make_shared<DecompressOptions>();
-                                      command.add_option("INPUT", d->input, "Input .dcv file")->required();
-                                      command.add_option("OUTPUT", d->output, "Output volume (format from its extension)")
-                                        ->required();
-                                      command.add_flag("--force,-f", d->force, "Overwrite OUTPUT if it exists");
-                                      command.add_flag("--quiet,-q", d->quiet, "Print nothing but errors");
-                                      return [d] { Decompress(*d); };
-                                    } } };
+const RegisterCommand decompress{
+  { "decompress",
+    "Decode a .dcv file into any image format ITK writes (gzip-compressed where the "
+    "format allows)",
+    [](CLI::App & command) -> std::function<void()> {
+      auto d = std::make_shared<DecompressOptions>();
+      command.add_option("INPUT", d->input, "Input .dcv file")->required();
+      command.add_option("OUTPUT", d->output, "Output volume (format from its extension)")->required();
+      command.add_flag("--force,-f", d->force, "Overwrite OUTPUT if it exists");
+      command.add_flag("--quiet,-q", d->quiet, "Print nothing but errors");
+      return [d] { Decompress(*d); };
+    } }
+};
 } // namespace
 } // namespace dcv::tools

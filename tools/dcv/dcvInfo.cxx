@@ -49,10 +49,12 @@ Info(const std::string & input)
     std::cout << "metadata: " << kv.first << " = " << kv.second << "\n";
 }
 
-const RegisterCommand info{ { "info", "Print the header of a .dcv file", [](CLI::App & command) -> std::function<void()> {
-                               auto input = std::make_shared<std::string>();
-                               command.add_option("FILE", *input, "A .dcv file")->required();
-                               return [input] { Info(*input); };
-                             } } };
+const RegisterCommand info{ { "info",
+                              "Print the header of a .dcv file",
+                              [](CLI::App & command) -> std::function<void()> {
+                                auto input = std::make_shared<std::string>();
+                                command.add_option("FILE", *input, "A .dcv file")->required();
+                                return [input] { Info(*input); };
+                              } } };
 } // namespace
 } // namespace dcv::tools

@@ -49,15 +49,13 @@ Phantom(const PhantomOptions & p)
   WriteVolume(image.GetPointer(), p.output);
 }
 
-const RegisterCommand phantom{ { "phantom",
-                                 "Write a 3D Shepp-Logan head phantom (uint8)",
-                                 [](CLI::App & command) -> std::function<void()> {
-                                   auto p = std::make_shared<PhantomOptions>();
-                                   command.add_option("OUTPUT", p->output, "Output volume (format from its extension)")
-                                     ->required();
-                                   command.add_option("--size,-s", p->size, "Voxels along each axis")->capture_default_str();
-                                   command.add_flag("--force,-f", p->force, "Overwrite OUTPUT if it exists");
-                                   return [p] { Phantom(*p); };
-                                 } } };
+const RegisterCommand
+  phantom{ { "phantom", "Write a 3D Shepp-Logan head phantom (uint8)", [](CLI::App & command) -> std::function<void()> {
+              auto p = std::make_shared<PhantomOptions>();
+              command.add_option("OUTPUT", p->output, "Output volume (format from its extension)")->required();
+              command.add_option("--size,-s", p->size, "Voxels along each axis")->capture_default_str();
+              command.add_flag("--force,-f", p->force, "Overwrite OUTPUT if it exists");
+              return [p] { Phantom(*p); };
+            } } };
 } // namespace
 } // namespace dcv::tools
