@@ -44,6 +44,7 @@ using Tetrahedron = std::array<uint32_t, 4>;
 struct Approximation
 {
   GridSize                 grid;
+  GridScale                scale{ { 1, 1, 1 } }; // of the space the tetrahedra are Delaunay in
   std::vector<GridPoint>   points;
   std::vector<double>      values;
   std::vector<Tetrahedron> tetrahedra;
@@ -54,7 +55,7 @@ struct Approximation
  * unique for a point set, so it equals the encoder's mesh whatever the insertion order.
  * Throws std::invalid_argument on duplicate points. */
 DelaunayCompression_EXPORT std::vector<Tetrahedron>
-                           Tetrahedralize(const std::vector<GridPoint> & points);
+                           Tetrahedralize(const std::vector<GridPoint> & points, const GridScale & scale = { { 1, 1, 1 } });
 
 /** Checks that points lie on the grid and include its 8 corners; throws std::invalid_argument. */
 DelaunayCompression_EXPORT void
@@ -152,7 +153,7 @@ void
 Decode(Approximation & a, T * out)
 {
   CheckPoints(a.grid, a.points);
-  a.tetrahedra = Tetrahedralize(a.points);
+  a.tetrahedra = Tetrahedralize(a.points, a.scale);
   Rasterize(a, out);
 }
 

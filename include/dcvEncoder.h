@@ -55,6 +55,9 @@ struct EncoderOptions
   double domainSigma{ 1.0 }; // bilateral filter of I*: spatial sigma, voxels
   double rangeSigma{ 0.0 };  // bilateral filter of I*: intensity sigma (0: 8% of the peak)
   double alpha{ 0.9 };       // positions on I* until PSNR(L) >= alpha PSNR(I*)
+  /** Per-axis scale of the Delaunay space (GridScale); 0 on every axis: from the voxel spacing
+   * (AutomaticScale). */
+  GridScale scale{ { 0, 0, 0 } };
   /** Key/value pairs stored in the file's metadata block (they count against the bit budget). */
   std::vector<std::pair<std::string, std::string>> metadata;
   /** Called with the fraction done, in [0, 1]; it may throw to abort. */
@@ -77,6 +80,11 @@ struct EncoderInput
   const float * smoothed{ nullptr };
   FileHeader    header; // pixelType, size, spacing, origin, direction
 };
+
+/** The scale that makes the Delaunay space follow the physical spacing: integers 1 to MaximumGridScale
+ * in the ratios of the spacings, within 5% where they allow. */
+DelaunayCompression_EXPORT GridScale
+AutomaticScale(const std::array<double, 3> & spacing);
 
 /** The PSNR peak of an encoder input (255 for 8-bit data, else max - min). */
 DelaunayCompression_EXPORT double

@@ -66,6 +66,13 @@ constexpr int32_t MaximumGridExtent = 65535;
 /** Integer grid coordinates of a point. */
 using GridPoint = std::array<int32_t, 3>;
 
+/** Integer factors per axis of the space in which the Delaunay tetrahedralization is built: points at
+ * (sx x, sy y, sz z). With thick slices (sz > 1) cells across slices become thin, as the physical
+ * spacing asks. The cells are still tetrahedra of grid points, so rasterization is unchanged; and
+ * coordinates stay exact in doubles (65535 x 16 < 2^20). */
+using GridScale = std::array<int32_t, 3>;
+constexpr int32_t MaximumGridScale = 16;
+
 namespace detail
 {
 /** floor(a / b) for b > 0 and |a| < 2^53, exact: a double division (much cheaper than a 64-bit

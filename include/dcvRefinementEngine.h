@@ -73,6 +73,8 @@ struct RefinementParameters
    * reproduces the engine's approximation exactly. */
   double quantizationStep{ 0.0 };
   double quantizationOrigin{ 0.0 };
+  /** Per-axis scale of the space the tetrahedralization is Delaunay in (GridScale). */
+  GridScale scale{ { 1, 1, 1 } };
   /** Range of vertex values (the pixel type's), enforced on values that are not image values. */
   double valueMin{ -1e300 };
   double valueMax{ 1e300 };

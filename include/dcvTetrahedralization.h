@@ -58,6 +58,11 @@ public:
   Tetrahedralization &
   operator=(const Tetrahedralization &) = delete;
 
+  /** Builds the tetrahedralization of the points scaled per axis (before any insertion; default 1, 1, 1).
+   * Throws std::invalid_argument outside 1 .. MaximumGridScale. */
+  void
+  SetScale(const GridScale & scale);
+
   /** Inserts points in bulk (spatially sorted; vertex i is points[i] shifted by the current count). */
   void
   InsertMany(const std::vector<GridPoint> & points);

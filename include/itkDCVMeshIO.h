@@ -39,7 +39,9 @@ namespace itk
  * the lattice QuantizationOrigin + k QuantizationStep: set both as the approximation filter reports
  * them (GetQuantizationOrigin(), GetChosenQuantizationStep()); writing refuses a step left at 0.
  * DecodedPixelType, the pixel type a decoder gives the volume, is the reference image's pixel type
- * when it is an itk::Image of a .dcv pixel type, else it must be set. The file's mode is "unknown"
+ * when it is an itk::Image of a .dcv pixel type, else it must be set. Scale, the Delaunay space of the
+ * cells a reader rebuilds, is by default the one the approximation filter chooses from the reference
+ * image's spacing (dcv::AutomaticScale); set it as the filter reports it (GetChosenScale()) otherwise. The file's mode is "unknown"
  * (FileHeader::UnknownMode): the points were not chosen by the encoder. For a file at a bit rate,
  * write the image with ImageFileWriter (DCVImageIO) instead.
  * \ingroup DelaunayCompression
@@ -70,6 +72,18 @@ public:
     m_DecodedPixelType = type;
     m_DecodedPixelTypeSet = true;
     this->Modified();
+  }
+  /** Scale of the Delaunay space (default 0, 0, 0: from the reference image's spacing). */
+  void
+  SetScale(const dcv::GridScale & scale)
+  {
+    m_Scale = scale;
+    this->Modified();
+  }
+  const dcv::GridScale &
+  GetScale() const
+  {
+    return m_Scale;
   }
   /** The set type, else the reference image's (float32 when neither says). */
   dcv::PixelType
@@ -122,6 +136,7 @@ private:
   double                     m_QuantizationStep{ 0.0 };
   dcv::PixelType             m_DecodedPixelType{ dcv::PixelType::Float32 };
   bool                       m_DecodedPixelTypeSet{ false };
+  dcv::GridScale             m_Scale{ { 0, 0, 0 } };
   dcv::FileHeader            m_Header;
   std::vector<double>        m_Points; // physical coordinates, written or read
   std::vector<double>        m_Values;

@@ -54,6 +54,9 @@ namespace itk
  *   so that the .dcv file of the output (without metadata) has at most floor(BitsPerVoxel * voxels / 8)
  *   bytes and at least 97% of that, and, when QuantizationStep is 0, the step too: the best of 1, 2 and
  *   4 times 1/64 of the peak (dcv::ApproximateToBudget). GetChosenQuantizationStep() gives the step.
+ * - Scale (default 0, 0, 0: from the spacing): the Delaunay tetrahedralization is built for the points
+ *   (sx x, sy y, sz z), so that with thick slices cells across slices are thin (dcv::AutomaticScale:
+ *   integers in the ratios of the spacings). GetChosenScale() gives the one used.
  * - PSNR (default 0: off; not with BitsPerVoxel): when positive, the fewest points whose decoded image
  *   (rounded to the input's pixel type) reaches this PSNR in dB (dcv::ApproximateToQuality); values
  *   are quantized with QuantizationStep, or when it is 0 with 1/64 of the peak, less where the target
@@ -125,6 +128,13 @@ public:
   itkSetMacro(BitsPerVoxel, double);
   itkGetConstMacro(BitsPerVoxel, double);
 
+  /** Per-axis scale of the space the tetrahedralization is Delaunay in (default 0, 0, 0: from the
+   * input's spacing, dcv::AutomaticScale; else 1 to 16 per axis). */
+  itkSetMacro(Scale, dcv::GridScale);
+  itkGetConstReferenceMacro(Scale, dcv::GridScale);
+  /** The scale the last Update() used. */
+  itkGetConstReferenceMacro(ChosenScale, dcv::GridScale);
+
   /** Quality target in dB (default 0: off): the fewest points whose decoded PSNR reaches it. */
   itkSetMacro(PSNR, double);
   itkGetConstMacro(PSNR, double);
@@ -172,6 +182,8 @@ private:
   double        m_QuantizationOrigin{ 0.0 };
   double        m_BitsPerVoxel{ 0.0 };
   double        m_PSNR{ 0.0 };
+  dcv::GridScale m_Scale{ { 0, 0, 0 } };
+  dcv::GridScale m_ChosenScale{ { 1, 1, 1 } };
   double        m_ChosenQuantizationStep{ 0.0 };
   double        m_SquaredError{ 0.0 };
   double        m_MeanSquaredError{ 0.0 };

@@ -65,6 +65,7 @@ DelaunayApproximationImageToMeshFilter<TInputImage, TOutputMesh>::GenerateData()
   options.quantizationStep = m_QuantizationStep;
   options.bitsPerVoxel = m_BitsPerVoxel;
   options.psnr = m_PSNR;
+  options.scale = m_Scale;
   options.progress = [this](double fraction) {
     this->UpdateProgress(float(fraction));
     if (this->GetAbortGenerateData())
@@ -89,6 +90,7 @@ DelaunayApproximationImageToMeshFilter<TInputImage, TOutputMesh>::GenerateData()
   }
   m_QuantizationOrigin = r.header.quantizationOrigin;
   m_ChosenQuantizationStep = r.quantizationStep;
+  m_ChosenScale = r.header.scale;
   m_SquaredError = r.squaredError;
   m_MeanSquaredError = m_SquaredError / double(r.header.size.NumberOfVoxels());
   m_SmoothedPSNR = r.smoothedPSNR;
@@ -142,6 +144,9 @@ DelaunayApproximationImageToMeshFilter<TInputImage, TOutputMesh>::PrintSelf(std:
   os << indent << "QuantizationOrigin: " << m_QuantizationOrigin << std::endl;
   os << indent << "BitsPerVoxel: " << m_BitsPerVoxel << std::endl;
   os << indent << "PSNR: " << m_PSNR << std::endl;
+  os << indent << "Scale: " << m_Scale[0] << " " << m_Scale[1] << " " << m_Scale[2] << std::endl;
+  os << indent << "ChosenScale: " << m_ChosenScale[0] << " " << m_ChosenScale[1] << " " << m_ChosenScale[2]
+     << std::endl;
   os << indent << "ChosenQuantizationStep: " << m_ChosenQuantizationStep << std::endl;
   os << indent << "SquaredError: " << m_SquaredError << std::endl;
   os << indent << "MeanSquaredError: " << m_MeanSquaredError << std::endl;

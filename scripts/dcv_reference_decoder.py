@@ -64,6 +64,7 @@ PIXEL_TYPES = {1: "uint8", 2: "int8", 3: "uint16", 4: "int16", 5: "uint32", 6: "
 MODES = {0: "silva", 1: "dec", 2: "dec+com", 3: "best"}
 FLAG_DIRECTION = 1
 FLAG_METADATA = 2
+FLAG_SCALE = 4
 IDENTITY = (1.0, 0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 1.0)
 
 
@@ -107,7 +108,7 @@ def parse_container(data):
     pixel_type, flags, mode = f.unpack("3B", "header")
     if pixel_type not in PIXEL_TYPES:
         raise DamagedFile("unknown pixel type code %d" % pixel_type)
-    if flags & ~(FLAG_DIRECTION | FLAG_METADATA):
+    if flags & ~(FLAG_DIRECTION | FLAG_METADATA | FLAG_SCALE):
         raise DamagedFile("unknown header flags %d" % flags)
     size = f.unpack("3H", "header")
     if min(size) < 2:
@@ -115,6 +116,9 @@ def parse_container(data):
     spacing = f.unpack("3d", "header")
     origin = f.unpack("3d", "header")
     direction = f.unpack("9d", "header") if flags & FLAG_DIRECTION else IDENTITY
+    scale = f.unpack("3B", "header") if flags & FLAG_SCALE else (1, 1, 1)
+    if not all(1 <= s <= 16 for s in scale):
+        raise DamagedFile("invalid Delaunay scale")
     if not all(math.isfinite(s) and s > 0.0 for s in spacing):
         raise DamagedFile("invalid voxel spacing")
     q0, q = f.unpack("2d", "header")
@@ -144,7 +148,7 @@ def parse_container(data):
         raise DamagedFile("%d unexpected bytes before the checksum" % f.left())
 
     return dict(version=VERSION, pixel_type=pixel_type, flags=flags, mode=mode, size=size, spacing=spacing,
-                origin=origin, direction=direction, q0=q0, q=q, n=n, payload=payload, metadata=metadata)
+                origin=origin, direction=direction, scale=scale, q0=q0, q=q, n=n, payload=payload, metadata=metadata)
 
 
 # =========================================================================
@@ -439,6 +443,7 @@ def print_header(h):
     print("spacing", *map(repr, h["spacing"]))
     print("origin", *map(repr, h["origin"]))
     print("direction", *map(repr, h["direction"]))
+    print("scale", *h["scale"])
     print("quantization_origin", repr(h["q0"]))
     print("quantization_step", repr(h["q"]))
     print("points", h["n"])

@@ -44,9 +44,10 @@ Spread(uint64_t v)
 } // namespace
 
 std::vector<Tetrahedron>
-Tetrahedralize(const std::vector<GridPoint> & points)
+Tetrahedralize(const std::vector<GridPoint> & points, const GridScale & scale)
 {
   Tetrahedralization mesh;
+  mesh.SetScale(scale);
   mesh.InsertMany(points);
   const auto cells = mesh.FiniteCells();
   // CGAL lists cells in memory order, which is scattered in space; rasterizing them in the Morton

@@ -129,7 +129,7 @@ EncodePayload(const Approximation & a, double q0, double q)
     }
     k[i] = int64_t(index);
   }
-  const Adjacency      adjacency(points.size(), Tetrahedralize(points));
+  const Adjacency      adjacency(points.size(), Tetrahedralize(points, a.scale));
   std::vector<uint8_t> bytes;
   ArithmeticEncoder    encoder(bytes);
   EncodePositions(encoder, a.grid, points);
@@ -145,12 +145,18 @@ EncodePayload(const Approximation & a, double q0, double q)
 }
 
 Approximation
-DecodePayload(const std::vector<uint8_t> & payload, const GridSize & grid, uint32_t count, double q0, double q,
-              const std::string & name)
+DecodePayload(const std::vector<uint8_t> & payload,
+              const GridSize &             grid,
+              uint32_t                     count,
+              double                       q0,
+              double                       q,
+              const std::string &          name,
+              const GridScale &            scale)
 {
   ArithmeticDecoder decoder(payload.data(), payload.size());
   Approximation     a;
   a.grid = grid;
+  a.scale = scale;
   try
   {
     a.points = DecodePositions(decoder, grid, count);
@@ -164,7 +170,7 @@ DecodePayload(const std::vector<uint8_t> & payload, const GridSize & grid, uint3
   {
     throw FormatError(name + ": the payload ends inside the point positions");
   }
-  a.tetrahedra = Tetrahedralize(a.points);
+  a.tetrahedra = Tetrahedralize(a.points, a.scale);
   const Adjacency      adjacency(a.points.size(), a.tetrahedra);
   std::vector<int64_t> k(a.points.size());
   ValueCoder           values;
@@ -197,7 +203,8 @@ Approximation
 Decode(const CompressedFile & file)
 {
   const FileHeader & h = file.header;
-  return DecodePayload(file.payload, h.size, h.numberOfPoints, h.quantizationOrigin, h.quantizationStep, file.name);
+  return DecodePayload(
+    file.payload, h.size, h.numberOfPoints, h.quantizationOrigin, h.quantizationStep, file.name, h.scale);
 }
 
 } // namespace dcv

@@ -33,6 +33,7 @@ namespace
 constexpr uint8_t Magic[4] = { 0x89, 'D', 'C', 'V' };
 constexpr uint8_t FlagDirection = 1; // a non-identity direction matrix follows the origin
 constexpr uint8_t FlagMetadata = 2;  // a metadata block follows the payload
+constexpr uint8_t FlagScale = 4;     // three per-axis scales of the Delaunay space follow the direction
 
 class Writer
 {
@@ -211,10 +212,18 @@ SerializeFile(const FileHeader & h, const std::vector<uint8_t> & payload)
   Writer     w;
   const bool direction = !IsIdentity(h.direction);
   const bool metadata = !h.metadata.empty();
+  const bool scaled = h.scale != GridScale{ { 1, 1, 1 } };
+  for (int32_t s : h.scale)
+  {
+    if (s < 1 || s > MaximumGridScale)
+    {
+      throw std::invalid_argument("a .dcv scale must be 1 to " + std::to_string(MaximumGridScale));
+    }
+  }
   w.Bytes(Magic, 4);
   w.U8(FileHeader::Version);
   w.U8(uint8_t(h.pixelType));
-  w.U8(uint8_t((direction ? FlagDirection : 0) | (metadata ? FlagMetadata : 0)));
+  w.U8(uint8_t((direction ? FlagDirection : 0) | (metadata ? FlagMetadata : 0) | (scaled ? FlagScale : 0)));
   w.U8(h.mode);
   w.U16(uint16_t(h.size.x));
   w.U16(uint16_t(h.size.y));
@@ -227,6 +236,11 @@ SerializeFile(const FileHeader & h, const std::vector<uint8_t> & payload)
   {
     for (double v : h.direction)
       w.F64(v);
+  }
+  if (scaled)
+  {
+    for (int32_t s : h.scale)
+      w.U8(uint8_t(s));
   }
   w.F64(h.quantizationOrigin);
   w.F64(h.quantizationStep);
@@ -289,7 +303,7 @@ ParseFile(const std::vector<uint8_t> & bytes, const std::string & name, FileHead
   }
   h.pixelType = PixelType(type);
   const uint8_t flags = r.U8("header");
-  if (flags & ~(FlagDirection | FlagMetadata))
+  if (flags & ~(FlagDirection | FlagMetadata | FlagScale))
   {
     throw FormatError(name + ": unknown header flags " + std::to_string(flags));
   }
@@ -311,6 +325,16 @@ ParseFile(const std::vector<uint8_t> & bytes, const std::string & name, FileHead
   {
     for (double & v : h.direction)
       v = r.F64("header");
+  }
+  h.scale = { { 1, 1, 1 } };
+  if (flags & FlagScale)
+  {
+    for (int32_t & s : h.scale)
+    {
+      s = r.U8("header");
+      if (s < 1 || s > MaximumGridScale)
+        throw FormatError(name + ": invalid Delaunay scale " + std::to_string(s));
+    }
   }
   for (double v : h.spacing)
   {

@@ -495,6 +495,7 @@ RefinementEngine::RefinementEngine(const float * image, const GridSize & grid, c
     throw std::invalid_argument("RefinementEngine: the quantization step must be positive or 0 (none)");
   }
   Impl & d = *m_Impl;
+  d.mesh.SetScale(parameters.scale);
   d.image = image;
   d.grid = grid;
   d.parameters = parameters;
@@ -858,6 +859,7 @@ RefinementEngine::GetApproximation() const
   const Impl &  d = *m_Impl;
   Approximation a;
   a.grid = d.grid;
+  a.scale = d.parameters.scale;
   // Vertex ids have holes once vertices were removed: number the live ones densely.
   std::vector<uint32_t> index(d.mesh.NumberOfVertexIds(), NoCell);
   const auto            cells = d.mesh.FiniteCells();

@@ -25,6 +25,7 @@
 
 #include <algorithm>
 #include <stdexcept>
+#include <string>
 
 namespace dcv
 {
@@ -47,15 +48,16 @@ using VertexHandle = Delaunay::Vertex_handle;
 using CgalPoint = Kernel::Point_3;
 
 CgalPoint
-ToCgal(const GridPoint & p)
+ToCgal(const GridPoint & p, const GridScale & s)
 {
-  return CgalPoint(p[0], p[1], p[2]);
+  return CgalPoint(double(p[0]) * s[0], double(p[1]) * s[1], double(p[2]) * s[2]);
 }
 } // namespace
 
 struct Tetrahedralization::Impl
 {
   Delaunay                  dt;
+  GridScale                 scale{ { 1, 1, 1 } };
   std::vector<GridPoint>    points;   // by vertex id
   std::vector<VertexHandle> vertices; // by vertex id (null once removed)
   std::vector<CellHandle>   cells;    // by cell id (stale once the cell died)
@@ -124,6 +126,24 @@ Tetrahedralization::Tetrahedralization()
 Tetrahedralization::~Tetrahedralization() = default;
 
 void
+Tetrahedralization::SetScale(const GridScale & scale)
+{
+  for (int32_t s : scale)
+  {
+    if (s < 1 || s > MaximumGridScale)
+    {
+      throw std::invalid_argument("Tetrahedralization: each axis scale must be 1 to " +
+                                  std::to_string(MaximumGridScale) + ", got " + std::to_string(s));
+    }
+  }
+  if (!m_Impl->points.empty())
+  {
+    throw std::logic_error("Tetrahedralization: the scale is set before any point is inserted");
+  }
+  m_Impl->scale = scale;
+}
+
+void
 Tetrahedralization::InsertMany(const std::vector<GridPoint> & points)
 {
   Impl &                                      d = *m_Impl;
@@ -132,7 +152,7 @@ Tetrahedralization::InsertMany(const std::vector<GridPoint> & points)
   const VertexId first = VertexId(d.points.size());
   for (std::size_t i = 0; i < points.size(); ++i)
   {
-    input.emplace_back(ToCgal(points[i]), first + VertexId(i));
+    input.emplace_back(ToCgal(points[i], d.scale), first + VertexId(i));
     d.points.push_back(points[i]);
   }
   d.vertices.resize(d.points.size());
@@ -157,7 +177,7 @@ Tetrahedralization::Insert(const GridPoint & p, CellId hint, std::vector<CellId>
   killed.clear();
   created.clear();
   const VertexId  id = VertexId(d.points.size());
-  const CgalPoint q = ToCgal(p);
+  const CgalPoint q = ToCgal(p, d.scale);
   if (d.dt.dimension() < 3)
   {
     // Lower-dimensional start (the first corners): let CGAL build it and number what exists.

@@ -20,6 +20,7 @@
 
 #include "dcvApproximation.h"
 #include "dcvCodec.h"
+#include "dcvEncoder.h"
 #include "itkDCVImageInformation.h"
 #include "itkImage.h"
 #include "itkVersion.h"
@@ -212,6 +213,8 @@ DCVMeshIO::Write()
   CopyDCVGeometry(m_ReferenceImage, region, h);
   h.pixelType = this->GetDecodedPixelType();
   h.mode = dcv::FileHeader::UnknownMode;
+  h.scale = m_Scale == dcv::GridScale{ { 0, 0, 0 } } ? dcv::AutomaticScale(h.spacing) : m_Scale;
+  a.scale = h.scale; // the value prediction follows the neighbours of the scaled Delaunay space
   h.quantizationOrigin = m_QuantizationOrigin;
   h.quantizationStep = m_QuantizationStep;
   h.numberOfPoints = uint32_t(n);
@@ -261,6 +264,7 @@ DCVMeshIO::PrintSelf(std::ostream & os, Indent indent) const
   os << indent << "ReferenceImage: " << m_ReferenceImage.GetPointer() << std::endl;
   os << indent << "QuantizationOrigin: " << m_QuantizationOrigin << std::endl;
   os << indent << "QuantizationStep: " << m_QuantizationStep << std::endl;
+  os << indent << "Scale: " << m_Scale[0] << " " << m_Scale[1] << " " << m_Scale[2] << std::endl;
   os << indent << "DecodedPixelType: " << dcv::PixelTypeName(this->GetDecodedPixelType()) << std::endl;
 }
 

@@ -117,7 +117,8 @@ DecodeWithTheLibrary(const std::string & path)
   d.bytes = ReadWholeFile(path);
   ParseFile(d.bytes, path, d.header, d.payload);
   const FileHeader & h = d.header;
-  d.approximation = DecodePayload(d.payload, h.size, h.numberOfPoints, h.quantizationOrigin, h.quantizationStep, path);
+  d.approximation =
+    DecodePayload(d.payload, h.size, h.numberOfPoints, h.quantizationOrigin, h.quantizationStep, path, h.scale);
   return d;
 }
 
@@ -209,10 +210,10 @@ protected:
 
   /** The neighbour lists of the Delaunay tetrahedralization of the points, one line per vertex. */
   std::string
-  WriteNeighbours(const std::vector<GridPoint> & points, const std::string & name) const
+  WriteNeighbours(const std::vector<GridPoint> & points, const GridScale & scale, const std::string & name) const
   {
     std::vector<std::set<uint32_t>> around(points.size());
-    for (const Tetrahedron & t : Tetrahedralize(points))
+    for (const Tetrahedron & t : Tetrahedralize(points, scale))
       for (int i = 0; i < 4; ++i)
         for (int j = 0; j < 4; ++j)
           if (i != j)
@@ -248,7 +249,7 @@ protected:
     const Decoded         d = DecodeWithTheLibrary(path);
     const FileHeader &    h = d.header;
     const Approximation & a = d.approximation;
-    const std::string     neighbours = WriteNeighbours(a.points, "neighbours.txt");
+    const std::string     neighbours = WriteNeighbours(a.points, h.scale, "neighbours.txt");
     const Result          run = RunReference(path, neighbours);
     ASSERT_EQ(run.status, 0) << run.errors;
     const Reference r = ParseReference(run.output);
@@ -266,7 +267,8 @@ protected:
       return it == r.fields.end() ? Tokens() : it->second;
     };
     const bool   direction = h.direction != std::array<double, 9>{ 1, 0, 0, 0, 1, 0, 0, 0, 1 };
-    const int    flags = (direction ? 1 : 0) | (h.metadata.empty() ? 0 : 2);
+    const bool   scaled = h.scale != GridScale{ { 1, 1, 1 } };
+    const int    flags = (direction ? 1 : 0) | (h.metadata.empty() ? 0 : 2) | (scaled ? 4 : 0);
     const Tokens type = field("pixel_type");
     const Tokens mode = field("mode");
     EXPECT_EQ(field("version"), Tokens{ std::to_string(FileHeader::Version) });
@@ -277,6 +279,7 @@ protected:
     EXPECT_EQ(numbers(field("spacing")), std::vector<double>(h.spacing.begin(), h.spacing.end()));
     EXPECT_EQ(numbers(field("origin")), std::vector<double>(h.origin.begin(), h.origin.end()));
     EXPECT_EQ(numbers(field("direction")), std::vector<double>(h.direction.begin(), h.direction.end()));
+    EXPECT_EQ(numbers(field("scale")), (std::vector<double>{ double(h.scale[0]), double(h.scale[1]), double(h.scale[2]) }));
     EXPECT_EQ(numbers(field("quantization_origin")), std::vector<double>{ h.quantizationOrigin });
     EXPECT_EQ(numbers(field("quantization_step")), std::vector<double>{ h.quantizationStep });
     EXPECT_EQ(field("points"), Tokens{ std::to_string(h.numberOfPoints) });
@@ -361,6 +364,18 @@ TEST_F(FormatSpecification, DirectionAndMetadata)
   ExpectAgreement(WriteDcv("oriented.dcv", h, Phantom(GridSize{ 24, 30, 21 }, Mode::Best, 300, -3.5, 0.5)));
 }
 
+TEST_F(FormatSpecification, ScaledDelaunaySpace)
+{
+  // Thick slices: the tetrahedralization of (x, y, 5 z); the value prediction follows its neighbours.
+  FileHeader    h;
+  h.spacing = { 0.5, 0.5, 2.5 };
+  h.quantizationStep = 4.0;
+  Approximation a = Phantom(GridSize{ 30, 28, 12 }, Mode::Dec, 400, 0.0, 4.0);
+  a.scale = { { 1, 1, 5 } };
+  h.scale = a.scale;
+  ExpectAgreement(WriteDcv("scaled.dcv", h, a));
+}
+
 TEST_F(FormatSpecification, OnlyTheCorners)
 {
   // A large, flat grid (every split is of a box with 8 points or fewer), then a grid that is all corners.
@@ -413,7 +428,7 @@ TEST_F(FormatSpecification, DamagedFilesAreRefused)
   h.quantizationStep = 4.0;
   const std::string good = WriteDcv("good.dcv", h, Phantom(GridSize{ 20, 18, 16 }, Mode::Silva, 200, 0.0, 4.0));
   const Decoded     d = DecodeWithTheLibrary(good);
-  const std::string neighbours = WriteNeighbours(d.approximation.points, "neighbours.txt");
+  const std::string neighbours = WriteNeighbours(d.approximation.points, d.header.scale, "neighbours.txt");
   const std::vector<uint8_t> & bytes = d.bytes;
   const std::vector<uint8_t> & payload = d.payload;
 

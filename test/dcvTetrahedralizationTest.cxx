@@ -53,6 +53,35 @@ TEST(Tetrahedralization, UniqueWhateverTheInsertionOrder)
   }
 }
 
+TEST(Tetrahedralization, ScaledSpaceIsUniqueAndThinsCellsAcrossSlices)
+{
+  const GridSize         grid{ 20, 20, 6 };
+  const GridScale        thick{ { 1, 1, 8 } };
+  std::vector<GridPoint> points = test::RandomPoints(grid, 300, 11);
+  const CellSet          reference = Cells(points, Tetrahedralize(points, thick));
+  std::mt19937           random(5);
+  for (int order = 0; order < 5; ++order)
+  {
+    std::shuffle(points.begin(), points.end(), random);
+    EXPECT_EQ(Cells(points, Tetrahedralize(points, thick)), reference) << "order " << order;
+  }
+  EXPECT_NE(Cells(points, Tetrahedralize(points)), reference); // another metric, another mesh
+  // Cells that span several slices are rarer when slices count as thick.
+  auto spanning = [&points](const std::vector<Tetrahedron> & tets) {
+    std::size_t n = 0;
+    for (const auto & t : tets)
+    {
+      const auto [lo, hi] = std::minmax({ points[t[0]][2], points[t[1]][2], points[t[2]][2], points[t[3]][2] });
+      n += hi - lo > 1 ? 1 : 0;
+    }
+    return n;
+  };
+  EXPECT_LT(spanning(Tetrahedralize(points, thick)), spanning(Tetrahedralize(points)));
+  Tetrahedralization bad;
+  EXPECT_THROW(bad.SetScale({ { 1, 0, 1 } }), std::invalid_argument);
+  EXPECT_THROW(bad.SetScale({ { 1, 1, MaximumGridScale + 1 } }), std::invalid_argument);
+}
+
 TEST(Tetrahedralization, IncrementalInsertionReportsTheCavity)
 {
   const GridSize                        grid{ 12, 10, 9 };

@@ -211,6 +211,27 @@ TEST(Encoder, MeetsAPSNRTargetWithFewPoints)
   EXPECT_THROW(itk::DCVEncode(Phantom({ 8, 8, 8 }).GetPointer(), impossible), std::range_error);
 }
 
+TEST(Encoder, ScaleFollowsTheVoxelSpacing)
+{
+  using S = dcv::GridScale;
+  EXPECT_EQ(dcv::AutomaticScale({ 1.0, 1.0, 1.0 }), (S{ { 1, 1, 1 } }));
+  EXPECT_EQ(dcv::AutomaticScale({ 2.0, 2.0, 2.0 }), (S{ { 1, 1, 1 } }));
+  EXPECT_EQ(dcv::AutomaticScale({ 0.72, 0.72, 1.0 }), (S{ { 3, 3, 4 } }));
+  EXPECT_EQ(dcv::AutomaticScale({ 0.72, 0.72, 4.0 }), (S{ { 2, 2, 11 } }));
+  EXPECT_EQ(dcv::AutomaticScale({ 0.45, 0.45, 5.0 }), (S{ { 1, 1, 11 } }));
+  EXPECT_EQ(dcv::AutomaticScale({ 5.0, 0.5, 0.5 }), (S{ { 10, 1, 1 } })); // thick along x: sagittal slices
+  EXPECT_EQ(dcv::AutomaticScale({ 0.3, 0.3, 9.0 }), (S{ { 1, 1, 16 } })); // at most 16
+  // The encoder takes it from the image and stores it; given explicitly, it is used as given.
+  auto                image = dcv::test::PhantomImage({ 30, 30, 12 }, true); // spacing 0.5, 1, 2.5
+  dcv::EncoderOptions options;
+  options.numberOfPoints = 200;
+  EXPECT_EQ(itk::DCVEncode(image.GetPointer(), options).header.scale, (S{ { 1, 2, 5 } }));
+  options.scale = { { 1, 1, 1 } };
+  EXPECT_EQ(itk::DCVEncode(image.GetPointer(), options).header.scale, (S{ { 1, 1, 1 } }));
+  options.scale = { { 1, 0, 1 } };
+  EXPECT_THROW(itk::DCVEncode(image.GetPointer(), options), std::invalid_argument);
+}
+
 TEST(DelaunayApproximationImageToMeshFilter, RunsOnceForManyConsumers)
 {
   const dcv::test::TemporaryDirectory directory;

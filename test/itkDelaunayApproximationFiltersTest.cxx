@@ -179,8 +179,12 @@ TEST(DelaunayApproximationImageToMeshFilter, MeshInPhysicalSpaceDecodesToTheEngi
   EXPECT_EQ(decoded->GetLargestPossibleRegion(), image->GetLargestPossibleRegion());
   EXPECT_EQ(decoded->GetDirection(), image->GetDirection());
 
-  std::vector<float>    voxels(image->GetBufferPointer(), image->GetBufferPointer() + grid.NumberOfVoxels());
-  dcv::RefinementEngine engine(voxels.data(), grid);
+  // The Delaunay space follows the spacing 0.5, 1, 2.5.
+  EXPECT_EQ(approximate->GetChosenScale(), (dcv::GridScale{ { 1, 2, 5 } }));
+  std::vector<float>        voxels(image->GetBufferPointer(), image->GetBufferPointer() + grid.NumberOfVoxels());
+  dcv::RefinementParameters parameters;
+  parameters.scale = approximate->GetChosenScale();
+  dcv::RefinementEngine engine(voxels.data(), grid, parameters);
   engine.Refine(600);
   std::vector<uint8_t> expected(grid.NumberOfVoxels());
   dcv::Rasterize(engine.GetApproximation(), expected.data());

@@ -56,6 +56,7 @@ struct MethodOptions
 {
   EncoderOptions encoder;
   std::string    mode{ "best" };
+  std::vector<int32_t> scale; // --scale, when given
   bool           force{ false };
   bool           quiet{ false };
 

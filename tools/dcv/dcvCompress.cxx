@@ -61,6 +61,7 @@ Compress(const CompressOptions & c)
               << "bpv: " << double(r.bytes.size()) * 8.0 / voxels << "\n"
               << "points: " << r.header.numberOfPoints << "\n"
               << "step: " << r.header.quantizationStep << "\n"
+              << "scale: " << r.header.scale[0] << " " << r.header.scale[1] << " " << r.header.scale[2] << "\n"
               << "PSNR: " << r.psnr << " dB\n"
               << "seconds: " << SecondsSince(start) << "\n";
   }

@@ -44,6 +44,7 @@ Info(const std::string & input)
   std::cout << "\n"
             << "mode: " << (h.mode <= uint8_t(Mode::Best) ? ModeName(Mode(h.mode)) : "unknown") << "\n"
             << "points: " << h.numberOfPoints << "\n"
+            << "scale: " << h.scale[0] << " " << h.scale[1] << " " << h.scale[2] << "\n"
             << "quantization: " << h.quantizationOrigin << " + k * " << h.quantizationStep << "\n";
   for (const auto & kv : h.metadata)
     std::cout << "metadata: " << kv.first << " = " << kv.second << "\n";

@@ -39,6 +39,10 @@ EncoderOptions
 MethodOptions::Checked(const std::string & label) const
 {
   EncoderOptions o = encoder;
+  if (scale.size() == 3)
+  {
+    o.scale = { { scale[0], scale[1], scale[2] } };
+  }
   o.progress = TerminalProgress(label, quiet);
   try
   {
@@ -76,6 +80,12 @@ AddMethodOptions(CLI::App & command, std::string & input, MethodOptions & o)
     ->capture_default_str();
   command.add_option("--alpha", o.encoder.alpha, "Choose positions on I* until PSNR >= alpha * PSNR(I*)")
     ->capture_default_str();
+  command
+    .add_option("--scale",
+                o.scale,
+                "Delaunay space per axis: SX,SY,SZ (integers 1 to 16), or 0,0,0: from the voxel spacing")
+    ->delimiter(',')
+    ->expected(3);
   command.add_flag("--force,-f", o.force, "Overwrite OUTPUT if it exists");
   command.add_flag("--quiet,-q", o.quiet, "Print nothing but errors");
 }
