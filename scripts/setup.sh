@@ -10,6 +10,7 @@ packages=(
   zlib1g-dev              # crc32 of the .dcv files
   libcli11-dev            # dcv's arguments
   libgtest-dev            # tests
+  libdcmtk-dev            # DICOM: the tests edit copies of the dev series
   python3                 # the reference decoder of docs/format.md (dcvFormatSpecificationTest)
 )
 

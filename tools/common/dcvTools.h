@@ -25,7 +25,11 @@
 #include "itkDCVImageInformation.h"
 #include "itkImageFileReader.h"
 #include "itkImageFileWriter.h"
+#include "itkGDCMImageIO.h"
 #include "itkImageIOBase.h"
+#include "itkImageSeriesReader.h"
+
+#include "dcvDicom.h"
 
 #include <filesystem>
 #include <functional>
@@ -71,6 +75,45 @@ ReadVolume(const std::string & path)
   catch (const itk::ExceptionObject & e)
   {
     throw Failure("cannot read " + Quoted(path) + ": " + e.GetDescription());
+  }
+  return reader->GetOutput();
+}
+
+/** A volume to read: a volume file, or a DICOM series (a directory, or one of its files). */
+struct VolumeInput
+{
+  std::string                                      path;
+  PixelType                                        type{ PixelType::UInt8 };
+  DicomSeries                                      dicom;    // files empty: not DICOM
+  std::vector<std::pair<std::string, std::string>> metadata; // what a derived file keeps (DICOM attributes)
+  std::size_t                                      skipped{ 0 }; // files of a DICOM directory that are not DICOM
+};
+
+/** Opens a volume: checks a volume file's header (ReadVolumeHeader), or finds and checks a DICOM series
+ * (`series`: its Series Instance UID, needed when a directory holds several); Failure otherwise. */
+VolumeInput
+OpenVolume(const std::string & path, const std::string & series = "");
+
+/** Reads an opened volume as an image of pixel type T (DICOM: rescaled, so CT is in Hounsfield units). */
+template <typename T>
+typename itk::Image<T, 3>::Pointer
+ReadVolume(const VolumeInput & v)
+{
+  if (v.dicom.files.empty())
+  {
+    return ReadVolume<T>(v.path);
+  }
+  auto reader = itk::ImageSeriesReader<itk::Image<T, 3>>::New();
+  reader->SetImageIO(itk::GDCMImageIO::New());
+  reader->SetFileNames(v.dicom.files);
+  reader->MetaDataDictionaryArrayUpdateOff();
+  try
+  {
+    reader->Update();
+  }
+  catch (const itk::ExceptionObject & e)
+  {
+    throw Failure("cannot read the DICOM series " + Quoted(v.path) + ": " + e.GetDescription());
   }
   return reader->GetOutput();
 }

@@ -36,7 +36,7 @@ void
 Approximate(const ApproximateOptions & a)
 {
   const EncoderOptions options = a.method.Checked("approximating");
-  WithVolume(a.input, a.output, a.method.force, false, [&](auto image) {
+  WithVolume(a.input, a.method.series, a.output, a.method, false, [&](auto image, const VolumeInput &) {
     using T = typename decltype(image)::ObjectType::PixelType;
     const auto    start = std::chrono::steady_clock::now();
     EncoderResult r;

@@ -27,6 +27,7 @@
 
 #include <chrono>
 #include <functional>
+#include <iostream>
 #include <string>
 #include <vector>
 
@@ -56,7 +57,8 @@ struct MethodOptions
 {
   EncoderOptions encoder;
   std::string    mode{ "best" };
-  std::vector<int32_t> scale; // --scale, when given
+  std::vector<int32_t> scale;  // --scale, when given
+  std::string          series; // --series: the Series Instance UID of a DICOM input
   bool           force{ false };
   bool           quiet{ false };
 
@@ -66,15 +68,25 @@ struct MethodOptions
   Checked(const std::string & label) const;
 };
 
-/** Reads INPUT as an image of its own pixel type and calls f(image), after checking OUTPUT
- * (CheckOutput). */
+/** Opens INPUT (a volume file or a DICOM series), checks OUTPUT (CheckOutput), notes skipped non-DICOM
+ * files, then calls f(image, input) with the image read in its own pixel type. */
 template <typename TFunction>
 void
-WithVolume(const std::string & input, const std::string & output, bool force, bool dcvFile, TFunction && f)
+WithVolume(const std::string &   input,
+           const std::string &   series,
+           const std::string &   output,
+           const MethodOptions & o,
+           bool                  dcvFile,
+           TFunction &&          f)
 {
-  const PixelType type = ReadVolumePixelType(input);
-  CheckOutput(output, force, dcvFile);
-  VisitPixelType(type, [&](auto pixel) { f(ReadVolume<decltype(pixel)>(input)); });
+  const VolumeInput volume = OpenVolume(input, series);
+  CheckOutput(output, o.force, dcvFile);
+  if (volume.skipped > 0 && !o.quiet)
+  {
+    std::cerr << "dcv: skipped " << volume.skipped << " files of " << Quoted(input) << " that are not DICOM"
+              << std::endl;
+  }
+  VisitPixelType(volume.type, [&](auto pixel) { f(ReadVolume<decltype(pixel)>(volume), volume); });
 }
 
 /** Declares INPUT, the method's options, --force and --quiet on a command. */

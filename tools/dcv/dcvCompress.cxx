@@ -35,10 +35,11 @@ struct CompressOptions
 void
 Compress(const CompressOptions & c)
 {
-  const EncoderOptions options = c.method.Checked("compressing");
-  const auto           start = std::chrono::steady_clock::now();
-  EncoderResult        r;
-  WithVolume(c.input, c.output, c.method.force, true, [&](auto image) {
+  EncoderOptions options = c.method.Checked("compressing");
+  const auto     start = std::chrono::steady_clock::now();
+  EncoderResult  r;
+  WithVolume(c.input, c.method.series, c.output, c.method, true, [&](auto image, const VolumeInput & volume) {
+    options.metadata.insert(options.metadata.begin(), volume.metadata.begin(), volume.metadata.end());
     try
     {
       r = itk::DCVEncode(image.GetPointer(), options);

@@ -66,7 +66,9 @@ MethodOptions::Checked(const std::string & label) const
 void
 AddMethodOptions(CLI::App & command, std::string & input, MethodOptions & o)
 {
-  command.add_option("INPUT", input, "Input volume (NRRD, NIfTI, MetaImage, ...)")->required();
+  command.add_option("INPUT", input, "Input volume (NRRD, NIfTI, MetaImage, ...) or DICOM series (a directory)")
+    ->required();
+  command.add_option("--series", o.series, "Series Instance UID, when the DICOM directory holds several");
   command
     .add_option("--mode,-m",
                 o.mode,

@@ -1,0 +1,289 @@
+/*=========================================================================
+ *
+ *  Copyright NumFOCUS
+ *
+ *  Licensed under the Apache License, Version 2.0 (the "License");
+ *  you may not use this file except in compliance with the License.
+ *  You may obtain a copy of the License at
+ *
+ *         http://www.apache.org/licenses/LICENSE-2.0.txt
+ *
+ *  Unless required by applicable law or agreed to in writing, software
+ *  distributed under the License is distributed on an "AS IS" BASIS,
+ *  WITHOUT WARRANTIES OR CONDITIONS OF ANY KIND, either express or implied.
+ *  See the License for the specific language governing permissions and
+ *  limitations under the License.
+ *
+ *=========================================================================*/
+#include "dcvDicom.h"
+#include "dcvTools.h"
+
+#include "itkGDCMImageIO.h"
+#include "itkGDCMSeriesFileNames.h"
+#include "itkMetaDataObject.h"
+
+#include <algorithm>
+#include <cmath>
+#include <filesystem>
+#include <set>
+#include <sstream>
+
+namespace fs = std::filesystem;
+
+namespace dcv::tools
+{
+namespace
+{
+std::string
+Trimmed(std::string s)
+{
+  const auto first = s.find_first_not_of(" \t\r\n");
+  const auto last = s.find_last_not_of(" \t\r\n");
+  return first == std::string::npos ? std::string() : s.substr(first, last - first + 1);
+}
+
+std::string
+Tag(const itk::MetaDataDictionary & d, const std::string & key)
+{
+  std::string value;
+  itk::ExposeMetaData<std::string>(d, key, value);
+  return Trimmed(value);
+}
+
+/** The header of one file (GDCM reads up to the pixel data). */
+itk::GDCMImageIO::Pointer
+ReadHeader(const std::string & file)
+{
+  auto io = itk::GDCMImageIO::New();
+  io->SetFileName(file);
+  try
+  {
+    io->ReadImageInformation();
+  }
+  catch (const itk::ExceptionObject & e)
+  {
+    throw Failure("cannot read " + Quoted(file) + ": " + e.GetDescription());
+  }
+  return io;
+}
+
+std::string
+Millimetres(double v)
+{
+  std::ostringstream s;
+  s.precision(4);
+  s << v << " mm";
+  return s.str();
+}
+} // namespace
+
+bool
+IsDicomInput(const std::string & path)
+{
+  if (fs::is_directory(path))
+  {
+    return true;
+  }
+  auto io = itk::GDCMImageIO::New();
+  return fs::is_regular_file(path) && io->CanReadFile(path.c_str());
+}
+
+DicomSeries
+FindDicomSeries(const std::string & path, const std::string & uid, std::size_t & skipped)
+{
+  const fs::path directory = fs::is_directory(path) ? fs::path(path) : fs::path(path).parent_path();
+  std::string    wanted = uid;
+  if (!fs::is_directory(path) && wanted.empty())
+  {
+    // One file stands for its series.
+    wanted = Tag(ReadHeader(path)->GetMetaDataDictionary(), "0020|000e");
+  }
+  auto names = itk::GDCMSeriesFileNames::New();
+  names->SetUseSeriesDetails(false); // group by Series Instance UID alone: size and geometry are checked here
+  names->SetDirectory(directory.string());
+  std::vector<std::string> uids;
+  try
+  {
+    uids = names->GetSeriesUIDs();
+  }
+  catch (const itk::ExceptionObject & e)
+  {
+    throw Failure("cannot list the DICOM series of " + Quoted(directory.string()) + ": " + e.GetDescription());
+  }
+  std::size_t files = 0, dicom = 0;
+  for (const auto & entry : fs::directory_iterator(directory))
+  {
+    files += entry.is_regular_file() ? 1 : 0;
+  }
+  std::vector<DicomSeries> all;
+  for (const auto & u : uids)
+  {
+    DicomSeries s;
+    s.uid = u;
+    s.files = names->GetFileNames(u);
+    dicom += s.files.size();
+    if (!s.files.empty())
+    {
+      const auto io = ReadHeader(s.files.front());
+      s.uid = Tag(io->GetMetaDataDictionary(), "0020|000e");
+      s.description = Tag(io->GetMetaDataDictionary(), "0008|103e");
+      s.modality = Tag(io->GetMetaDataDictionary(), "0008|0060");
+      s.columns = unsigned(io->GetDimensions(0));
+      s.rows = unsigned(io->GetDimensions(1));
+    }
+    all.push_back(std::move(s));
+  }
+  skipped = files - std::min(files, dicom);
+  if (all.empty())
+  {
+    throw Failure("no DICOM image in " + Quoted(directory.string()) +
+                  (files ? " (" + std::to_string(files) + " files, none of them DICOM)" : " (it is empty)"));
+  }
+  if (!wanted.empty())
+  {
+    for (const auto & s : all)
+    {
+      if (s.uid == wanted)
+        return s;
+    }
+  }
+  if (all.size() == 1 && wanted.empty())
+  {
+    return all.front();
+  }
+  std::ostringstream list;
+  list << (wanted.empty() ? Quoted(directory.string()) + " holds " + std::to_string(all.size()) +
+                              " DICOM series; choose one with --series UID:"
+                          : "no series " + Quoted(wanted) + " in " + Quoted(directory.string()) + "; it holds:");
+  for (const auto & s : all)
+  {
+    list << "\n  " << s.uid << "  " << (s.modality.empty() ? "?" : s.modality) << "  " << s.files.size()
+         << " slices  " << s.columns << "x" << s.rows << "  " << Quoted(s.description);
+  }
+  throw Failure(list.str());
+}
+
+PixelType
+DicomPixelType(const DicomSeries & series)
+{
+  const auto io = ReadHeader(series.files.front());
+  try
+  {
+    return itk::DCVPixelType(io->GetComponentType(), Quoted(series.files.front()));
+  }
+  catch (const itk::ExceptionObject & e)
+  {
+    throw Failure(e.GetDescription());
+  }
+}
+
+std::vector<std::pair<std::string, std::string>>
+DicomMetadata(const DicomSeries & series)
+{
+  // The attributes a derived series keeps (DICOM PS3.3: patient, general study, frame of reference,
+  // general series and equipment, acquisition), by keyword.
+  static const std::pair<const char *, const char *> kept[] = {
+    { "0010|0010", "PatientName" },       { "0010|0020", "PatientID" },
+    { "0010|0030", "PatientBirthDate" },  { "0010|0040", "PatientSex" },
+    { "0020|000d", "StudyInstanceUID" },  { "0008|0020", "StudyDate" },
+    { "0008|0030", "StudyTime" },         { "0020|0010", "StudyID" },
+    { "0008|0050", "AccessionNumber" },   { "0008|0090", "ReferringPhysicianName" },
+    { "0008|1030", "StudyDescription" },  { "0020|0052", "FrameOfReferenceUID" },
+    { "0008|0060", "Modality" },          { "0018|0015", "BodyPartExamined" },
+    { "0020|000e", "SeriesInstanceUID" }, { "0020|0011", "SeriesNumber" },
+    { "0008|103e", "SeriesDescription" }, { "0008|0070", "Manufacturer" },
+    { "0008|1090", "ManufacturerModelName" }, { "0008|0080", "InstitutionName" },
+    { "0018|0050", "SliceThickness" },    { "0018|0060", "KVP" },
+    { "0008|0022", "AcquisitionDate" },   { "0020|0037", "ImageOrientationPatient" },
+    { "0028|1052", "RescaleIntercept" },  { "0028|1053", "RescaleSlope" },
+    { "0028|0101", "BitsStored" },        { "0028|0103", "PixelRepresentation" },
+  };
+  const auto                                       io = ReadHeader(series.files.front());
+  std::vector<std::pair<std::string, std::string>> metadata;
+  for (const auto & [tag, keyword] : kept)
+  {
+    const std::string value = Tag(io->GetMetaDataDictionary(), tag);
+    if (!value.empty())
+    {
+      metadata.emplace_back(std::string("DICOM ") + keyword, value);
+    }
+  }
+  return metadata;
+}
+
+void
+CheckDicomSlices(const std::string & name, const std::vector<DicomSlice> & slices)
+{
+  if (slices.size() < 2)
+  {
+    throw Failure(name + " has " + std::to_string(slices.size()) + " slice; a volume needs at least 2");
+  }
+  const DicomSlice & first = slices.front();
+  for (std::size_t i = 1; i < slices.size(); ++i)
+  {
+    if (slices[i].rows != first.rows || slices[i].columns != first.columns)
+    {
+      throw Failure(name + ": slices of different size (" + std::to_string(first.columns) + "x" +
+                    std::to_string(first.rows) + " and " + std::to_string(slices[i].columns) + "x" +
+                    std::to_string(slices[i].rows) + " at slice " + std::to_string(i + 1) + ")");
+    }
+    for (int k = 0; k < 6; ++k)
+    {
+      if (std::abs(slices[i].orientation[k] - first.orientation[k]) > 1e-4)
+      {
+        throw Failure(name + ": slices of different orientation (slice " + std::to_string(i + 1) +
+                      " differs from the first)");
+      }
+    }
+  }
+  const auto & o = first.orientation;
+  const std::array<double, 3> normal{ { o[1] * o[5] - o[2] * o[4], o[2] * o[3] - o[0] * o[5], o[0] * o[4] - o[1] * o[3] } };
+  std::vector<double> gaps;
+  for (std::size_t i = 1; i < slices.size(); ++i)
+  {
+    std::array<double, 3> step;
+    double                along = 0.0;
+    for (int d = 0; d < 3; ++d)
+    {
+      step[d] = slices[i].position[d] - slices[i - 1].position[d];
+      along += step[d] * normal[d];
+    }
+    double across = 0.0;
+    for (int d = 0; d < 3; ++d)
+    {
+      across += (step[d] - along * normal[d]) * (step[d] - along * normal[d]);
+    }
+    across = std::sqrt(across);
+    if (across > 1e-3 * std::max(1.0, std::abs(along)))
+    {
+      throw Failure(name + ": slices " + std::to_string(i) + " and " + std::to_string(i + 1) +
+                    " are not stacked along the normal of their orientation (offset " + Millimetres(across) +
+                    " across it: gantry tilt?); a tilted series is not a volume on a grid");
+    }
+    gaps.push_back(along);
+  }
+  std::vector<double> sorted(gaps);
+  std::sort(sorted.begin(), sorted.end());
+  const double usual = sorted[sorted.size() / 2];
+  if (!(std::abs(usual) > 1e-6))
+  {
+    throw Failure(name + ": slices at the same position (duplicates?)");
+  }
+  for (std::size_t i = 0; i < gaps.size(); ++i)
+  {
+    if (std::abs(gaps[i] - usual) > 1e-3 * std::abs(usual) + 1e-4)
+    {
+      const double ratio = gaps[i] / usual;
+      const bool   missing = ratio > 1.5 && std::abs(ratio - std::round(ratio)) < 0.05;
+      throw Failure(name + (missing ? ": missing slice" + std::string(std::round(ratio) > 2.0 ? "s" : "") +
+                                        " between slices " + std::to_string(i + 1) + " and " + std::to_string(i + 2) +
+                                        " (a gap of " + Millimetres(gaps[i]) + " where slices are " +
+                                        Millimetres(usual) + " apart)"
+                                    : ": uneven slice spacing: " + Millimetres(gaps[i]) + " between slices " +
+                                        std::to_string(i + 1) + " and " + std::to_string(i + 2) + ", " +
+                                        Millimetres(usual) + " elsewhere"));
+    }
+  }
+}
+
+} // namespace dcv::tools
