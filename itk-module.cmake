@@ -18,6 +18,8 @@ itk_module(DelaunayCompression
     ITKIONRRD
     ITKIONIFTI
     ITKIOMeta
+    ITKIOGDCM
+    ITKIOMeshVTK
   FACTORY_NAMES
     ImageIO::DCV
     MeshIO::DCV

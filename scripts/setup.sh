@@ -10,7 +10,8 @@ packages=(
   zlib1g-dev              # crc32 of the .dcv files
   libcli11-dev            # dcv's arguments
   libgtest-dev            # tests
-  libdcmtk-dev            # DICOM: the tests edit copies of the dev series
+  libdcmtk-dev            # DICOM series out; the tests edit copies of the dev series
+  dicom3tools             # dciodvfy: the tests check every DICOM file written
   python3                 # the reference decoder of docs/format.md (dcvFormatSpecificationTest)
 )
 

@@ -195,6 +195,7 @@ DicomMetadata(const DicomSeries & series)
     { "0008|1090", "ManufacturerModelName" }, { "0008|0080", "InstitutionName" },
     { "0018|0050", "SliceThickness" },    { "0018|0060", "KVP" },
     { "0008|0022", "AcquisitionDate" },   { "0020|0037", "ImageOrientationPatient" },
+    { "0018|5100", "PatientPosition" },
     { "0028|1052", "RescaleIntercept" },  { "0028|1053", "RescaleSlope" },
     { "0028|0101", "BitsStored" },        { "0028|0103", "PixelRepresentation" },
   };

@@ -18,6 +18,7 @@
 // dcv decompress: a .dcv file into any image format ITK writes.
 #include "dcvCodec.h"
 #include "dcvCommand.h"
+#include "dcvDicomWriter.h"
 
 #include <iostream>
 
@@ -31,13 +32,17 @@ struct DecompressOptions
   std::string output;
   bool        force{ false };
   bool        quiet{ false };
+  bool        dicom{ false };
 };
 
 void
 Decompress(const DecompressOptions & d)
 {
   const CompressedFile file = ReadCompressedFile(d.input);
-  CheckOutput(d.output, d.force);
+  if (!d.dicom)
+  {
+    CheckOutput(d.output, d.force);
+  }
   const auto          start = std::chrono::steady_clock::now();
   const Approximation a = Decode(file);
   VisitPixelType(file.header.pixelType, [&](auto pixel) {
@@ -46,7 +51,21 @@ Decompress(const DecompressOptions & d)
     image->SetBufferedRegion(image->GetLargestPossibleRegion());
     image->Allocate();
     Rasterize(a, image->GetBufferPointer());
-    WriteVolume(image.GetPointer(), d.output);
+    if (!d.dicom)
+    {
+      WriteVolume(image.GetPointer(), d.output);
+      return;
+    }
+    const std::size_t sliceVoxels = std::size_t(file.header.size.x) * std::size_t(file.header.size.y);
+    WriteDicomSeries(
+      file.header,
+      file.size,
+      [&](int32_t z, std::vector<double> & values) {
+        const auto * first = image->GetBufferPointer() + std::size_t(z) * sliceVoxels;
+        values.assign(first, first + sliceVoxels);
+      },
+      d.output,
+      d.force);
   });
   if (!d.quiet)
   {
@@ -63,6 +82,10 @@ const RegisterCommand decompress{
       command.add_option("INPUT", d->input, "Input .dcv file")->required();
       command.add_option("OUTPUT", d->output, "Output volume (format from its extension)")->required();
       command.add_flag("--force,-f", d->force, "Overwrite OUTPUT if it exists");
+      command.add_flag("--dicom",
+                       d->dicom,
+                       "OUTPUT is a directory: write a DICOM series (one file per slice, a derived lossy series "
+                       "of the original study)");
       command.add_flag("--quiet,-q", d->quiet, "Print nothing but errors");
       return [d] { Decompress(*d); };
     } }

@@ -15,8 +15,9 @@
  *  limitations under the License.
  *
  *=========================================================================*/
-// DICOM series in: dcv compress reads the dev CT series (Hounsfield units, its attributes kept), and
-// refuses, with a message that says which and why, series made from it that are not a volume on a grid.
+// DICOM series in and out: dcv compress reads the dev CT series (Hounsfield units, its attributes kept),
+// refuses, with a message that says which and why, series made from it that are not a volume on a grid,
+// and dcv decompress --dicom gives back a valid derived series of the same study.
 #include "dcvTestUtilities.h"
 
 #include "itkGDCMImageIO.h"
@@ -24,6 +25,8 @@
 #include "itkImageSeriesReader.h"
 
 #include <dcmtk/dcmdata/dctk.h>
+
+#include <sstream>
 
 namespace
 {
@@ -190,6 +193,129 @@ TEST_F(DicomInput, RefusesADirectoryWithoutImages)
   EXPECT_EQ(r.status, 1);
   EXPECT_NE(r.output.find("1 files, none of them DICOM"), std::string::npos) << r.output;
   EXPECT_FALSE(fs::exists(Path("x.dcv")));
+}
+
+/** Reads a DICOM directory with ITK. */
+itk::Image<int16_t, 3>::Pointer
+ReadSeries(const std::string & directory)
+{
+  auto names = itk::GDCMSeriesFileNames::New();
+  names->SetDirectory(directory);
+  auto reader = itk::ImageSeriesReader<itk::Image<int16_t, 3>>::New();
+  reader->SetImageIO(itk::GDCMImageIO::New());
+  reader->SetFileNames(names->GetInputFileNames());
+  reader->Update();
+  return reader->GetOutput();
+}
+
+/** The errors dciodvfy reports on every file of a directory ("" when it is not installed). */
+std::string
+DciodvfyErrors(const std::string & directory, std::size_t & files)
+{
+  files = 0;
+  std::string errors;
+  for (const auto & entry : fs::directory_iterator(directory))
+  {
+    ++files;
+    const Result r = dcv::test::RunCommand("dciodvfy '" + entry.path().string() + "' 2>&1");
+    std::istringstream lines(r.output);
+    for (std::string line; std::getline(lines, line);)
+    {
+      if (line.rfind("Error", 0) == 0)
+        errors += entry.path().filename().string() + ": " + line + "\n";
+    }
+  }
+  return errors;
+}
+
+bool
+HaveDciodvfy()
+{
+  return dcv::test::RunCommand("command -v dciodvfy").status == 0;
+}
+
+TEST_F(DicomInput, RoundTripsToAValidDerivedSeriesOfTheSameStudy)
+{
+  const Result c = RunDcv("compress " + m_Series + " " + Path("ct.dcv") + " --points 3000 -m dec");
+  ASSERT_EQ(c.status, 0) << c.output;
+  const std::string out = Path("returned");
+  const Result      d = RunDcv("decompress " + Path("ct.dcv") + " " + out + " --dicom");
+  ASSERT_EQ(d.status, 0) << d.output;
+  std::size_t files = 0;
+  if (HaveDciodvfy())
+  {
+    EXPECT_EQ(DciodvfyErrors(out, files), "");
+    EXPECT_EQ(files, 28u);
+  }
+  else
+  {
+    std::cout << "dciodvfy (dicom3tools) is not installed: the files were not validated" << std::endl;
+  }
+  // Same study and frame of reference, a new series, a lossy derived image.
+  DcmFileFormat original, returned;
+  ASSERT_TRUE(original.loadFile((m_Series + "/I10.dcm").c_str()).good());
+  ASSERT_TRUE(returned.loadFile((out + "/IM000001.dcm").c_str()).good());
+  auto tag = [](DcmFileFormat & f, const DcmTagKey & key) {
+    OFString v;
+    f.getDataset()->findAndGetOFStringArray(key, v);
+    return std::string(v.c_str());
+  };
+  EXPECT_EQ(tag(returned, DCM_StudyInstanceUID), tag(original, DCM_StudyInstanceUID));
+  EXPECT_EQ(tag(returned, DCM_FrameOfReferenceUID), tag(original, DCM_FrameOfReferenceUID));
+  EXPECT_EQ(tag(returned, DCM_PatientID), tag(original, DCM_PatientID));
+  EXPECT_NE(tag(returned, DCM_SeriesInstanceUID), tag(original, DCM_SeriesInstanceUID));
+  EXPECT_EQ(tag(returned, DCM_ImageType).rfind("DERIVED\\SECONDARY", 0), 0u) << tag(returned, DCM_ImageType);
+  EXPECT_EQ(tag(returned, DCM_LossyImageCompression), "01");
+  EXPECT_EQ(tag(returned, DCM_BitsStored), tag(original, DCM_BitsStored));
+  EXPECT_EQ(tag(returned, DCM_RescaleIntercept), tag(original, DCM_RescaleIntercept));
+  // Geometry within 1e-4 mm, values in HU, and the PSNR compress printed.
+  const auto a = ReadSeries(m_Series);
+  const auto b = ReadSeries(out);
+  ASSERT_EQ(a->GetLargestPossibleRegion(), b->GetLargestPossibleRegion());
+  for (unsigned i = 0; i < 3; ++i)
+  {
+    EXPECT_NEAR(a->GetOrigin()[i], b->GetOrigin()[i], 1e-4);
+    EXPECT_NEAR(a->GetSpacing()[i], b->GetSpacing()[i], 1e-4);
+    for (unsigned j = 0; j < 3; ++j)
+      EXPECT_NEAR(a->GetDirection()(i, j), b->GetDirection()(i, j), 1e-6);
+  }
+  const auto   n = a->GetBufferedRegion().GetNumberOfPixels();
+  const auto   range = std::minmax_element(a->GetBufferPointer(), a->GetBufferPointer() + n);
+  const double psnr = dcv::PSNR(dcv::SquaredError(a->GetBufferPointer(), b->GetBufferPointer(), n),
+                                n,
+                                double(*range.second) - double(*range.first));
+  EXPECT_NEAR(std::stod(c.output.substr(c.output.find("PSNR: ") + 6)), psnr, 1e-3);
+  // A non-empty directory is kept without --force, replaced with it.
+  EXPECT_EQ(RunDcv("decompress " + Path("ct.dcv") + " " + out + " --dicom").status, 1);
+  EXPECT_EQ(RunDcv("decompress " + Path("ct.dcv") + " " + out + " --dicom --force").status, 0);
+  EXPECT_EQ(std::distance(fs::directory_iterator(out), fs::directory_iterator()), 28);
+}
+
+TEST(DicomOutput, AVolumeNotFromDicomGetsAPlaceholderContext)
+{
+  const dcv::test::TemporaryDirectory directory;
+  ASSERT_EQ(RunDcv("phantom " + (directory / "p.nrrd") + " --size 24").status, 0);
+  ASSERT_EQ(RunDcv("compress " + (directory / "p.nrrd") + " " + (directory / "p.dcv") + " -n 300 -m dec").status, 0);
+  const Result d = RunDcv("decompress " + (directory / "p.dcv") + " " + (directory / "series") + " --dicom");
+  ASSERT_EQ(d.status, 0) << d.output;
+  std::size_t files = 0;
+  if (HaveDciodvfy())
+  {
+    EXPECT_EQ(DciodvfyErrors(directory / "series", files), "");
+    EXPECT_EQ(files, 24u);
+  }
+  DcmFileFormat f;
+  ASSERT_TRUE(f.loadFile((directory / "series/IM000001.dcm").c_str()).good());
+  OFString name, description;
+  f.getDataset()->findAndGetOFString(DCM_PatientName, name);
+  f.getDataset()->findAndGetOFString(DCM_StudyDescription, description);
+  EXPECT_EQ(std::string(name.c_str()), "DCV^PLACEHOLDER");
+  EXPECT_NE(std::string(description.c_str()).find("Not from DICOM"), std::string::npos);
+  // Its values come back (uint8 phantom stored in 16 bits).
+  const auto a = itk::ReadImage<itk::Image<int16_t, 3>>(directory / "p.nrrd");
+  const auto b = ReadSeries(directory / "series");
+  const auto n = a->GetBufferedRegion().GetNumberOfPixels();
+  EXPECT_GT(dcv::PSNR(dcv::SquaredError(a->GetBufferPointer(), b->GetBufferPointer(), n), n, 255.0), 15.0);
 }
 
 } // namespace

@@ -1,0 +1,294 @@
+/*=========================================================================
+ *
+ *  Copyright NumFOCUS
+ *
+ *  Licensed under the Apache License, Version 2.0 (the "License");
+ *  you may not use this file except in compliance with the License.
+ *  You may obtain a copy of the License at
+ *
+ *         http://www.apache.org/licenses/LICENSE-2.0.txt
+ *
+ *  Unless required by applicable law or agreed to in writing, software
+ *  distributed under the License is distributed on an "AS IS" BASIS,
+ *  WITHOUT WARRANTIES OR CONDITIONS OF ANY KIND, either express or implied.
+ *  See the License for the specific language governing permissions and
+ *  limitations under the License.
+ *
+ *=========================================================================*/
+#include "dcvDicomWriter.h"
+#include "dcvTools.h"
+
+#include <dcmtk/dcmdata/dctk.h>
+
+#include <algorithm>
+#include <ctime>
+#include <unistd.h>
+#include <cmath>
+#include <filesystem>
+#include <limits>
+#include <map>
+#include <sstream>
+
+namespace fs = std::filesystem;
+
+namespace dcv::tools
+{
+namespace
+{
+std::string
+NewUid()
+{
+  char uid[100];
+  dcmGenerateUniqueIdentifier(uid, SITE_SERIES_UID_ROOT);
+  return uid;
+}
+
+std::string
+Decimal(double v)
+{
+  // DICOM decimal strings hold at most 16 characters.
+  std::ostringstream s;
+  s.precision(10);
+  s << v;
+  std::string text = s.str();
+  for (int precision = 9; text.size() > 16 && precision > 1; --precision)
+  {
+    std::ostringstream shorter;
+    shorter.precision(precision);
+    shorter << v;
+    text = shorter.str();
+  }
+  return text;
+}
+
+/** How decoded values become stored pixels: value = slope * stored + intercept, stored in 16 bits. */
+struct PixelEncoding
+{
+  double   slope{ 1.0 };
+  double   intercept{ 0.0 };
+  bool     isSigned{ false };
+  unsigned bitsStored{ 16 };
+};
+
+void
+Put(DcmDataset & d, const DcmTagKey & key, const std::string & value)
+{
+  const OFCondition c = d.putAndInsertString(key, value.c_str());
+  if (c.bad())
+  {
+    throw Failure(std::string("cannot set a DICOM attribute: ") + c.text());
+  }
+}
+} // namespace
+
+void
+WriteDicomSeries(const FileHeader &                                                 header,
+                 std::size_t                                                        compressedBytes,
+                 const std::function<void(int32_t z, std::vector<double> & values)> & slice,
+                 const std::string &                                                directory,
+                 bool                                                               force)
+{
+  const fs::path target(directory);
+  if (fs::exists(target) && !fs::is_directory(target))
+  {
+    throw Failure("cannot write the DICOM series " + Quoted(directory) + ": it is a file, not a directory");
+  }
+  if (fs::is_directory(target) && !fs::is_empty(target) && !force)
+  {
+    throw Failure(Quoted(directory) + " is not empty; use --force to replace what it holds");
+  }
+  const fs::path parent = fs::absolute(target).parent_path();
+  if (!fs::is_directory(parent))
+  {
+    throw Failure("cannot write " + Quoted(directory) + ": directory " + Quoted(parent.string()) + " does not exist");
+  }
+  std::map<std::string, std::string> m;
+  for (const auto & [key, value] : header.metadata)
+  {
+    if (key.rfind("DICOM ", 0) == 0)
+      m[key.substr(6)] = value;
+  }
+  const bool  fromDicom = m.count("StudyInstanceUID") > 0;
+  const auto  get = [&m](const char * key, const std::string & otherwise = "") {
+    const auto it = m.find(key);
+    return it == m.end() ? otherwise : it->second;
+  };
+  const bool  ct = get("Modality") == "CT";
+  const int32_t nx = header.size.x, ny = header.size.y, nz = header.size.z;
+  if (nx > 65535 || ny > 65535)
+  {
+    throw Failure("cannot write " + Quoted(directory) + ": DICOM rows and columns are at most 65535");
+  }
+
+  // Stored pixels: the original's encoding when the volume came from DICOM, else the range in 16 bits.
+  PixelEncoding enc;
+  if (fromDicom && !get("RescaleSlope").empty())
+  {
+    enc.slope = std::stod(get("RescaleSlope", "1"));
+    enc.intercept = std::stod(get("RescaleIntercept", "0"));
+    enc.isSigned = get("PixelRepresentation", "0") == "1";
+    enc.bitsStored = unsigned(std::clamp(std::stoi(get("BitsStored", "16")), 1, 16));
+  }
+  else
+  {
+    double lo = std::numeric_limits<double>::infinity(), hi = -lo;
+    std::vector<double> values;
+    for (int32_t z = 0; z < nz; ++z)
+    {
+      slice(z, values);
+      const auto r = std::minmax_element(values.begin(), values.end());
+      lo = std::min(lo, *r.first);
+      hi = std::max(hi, *r.second);
+    }
+    const bool integer = IsInteger(header.pixelType);
+    if (integer && lo >= -32768 && hi <= 32767)
+    {
+      enc.isSigned = true;
+    }
+    else if (integer && lo >= 0 && hi <= 65535)
+    {
+      enc.isSigned = false;
+    }
+    else
+    {
+      enc.intercept = lo;
+      enc.slope = hi > lo ? (hi - lo) / 65535.0 : 1.0;
+    }
+  }
+  const double storedMin = enc.isSigned ? -double(1 << (enc.bitsStored - 1)) : 0.0;
+  const double storedMax = enc.isSigned ? double((1 << (enc.bitsStored - 1)) - 1) : double((1 << enc.bitsStored) - 1);
+
+  const std::string series = NewUid();
+  const std::string study = fromDicom ? get("StudyInstanceUID") : NewUid();
+  const std::string frame = get("FrameOfReferenceUID", NewUid());
+  const std::string now = [] {
+    char             date[32];
+    const std::time_t t = std::time(nullptr);
+    std::strftime(date, sizeof(date), "%Y%m%d%H%M%S", std::gmtime(&t));
+    return std::string(date);
+  }();
+  const double voxels = double(header.size.NumberOfVoxels());
+  const double originalBytes = voxels * (enc.bitsStored > 8 ? 2.0 : 1.0);
+  const double ratio = originalBytes / double(std::max<std::size_t>(1, compressedBytes));
+
+  const fs::path temporary = parent / (".dcv-" + std::to_string(::getpid()) + "-" + target.filename().string());
+  fs::remove_all(temporary);
+  fs::create_directories(temporary);
+  try
+  {
+    std::vector<double>   values;
+    std::vector<Uint16>   pixels(std::size_t(nx) * std::size_t(ny));
+    const auto &          d = header.direction; // row major: column j is axis j's direction
+    for (int32_t z = 0; z < nz; ++z)
+    {
+      DcmFileFormat file;
+      DcmDataset &  ds = *file.getDataset();
+      Put(ds, DCM_SOPClassUID, ct ? UID_CTImageStorage : UID_SecondaryCaptureImageStorage);
+      Put(ds, DCM_SOPInstanceUID, NewUid());
+      Put(ds, DCM_StudyInstanceUID, study);
+      Put(ds, DCM_SeriesInstanceUID, series);
+      Put(ds, DCM_FrameOfReferenceUID, frame);
+      Put(ds, DCM_PositionReferenceIndicator, "");
+      Put(ds, DCM_PatientName, get("PatientName", fromDicom ? "" : "DCV^PLACEHOLDER"));
+      Put(ds, DCM_PatientID, get("PatientID", fromDicom ? "" : "DCV-" + series.substr(series.size() - 8)));
+      Put(ds, DCM_PatientBirthDate, get("PatientBirthDate"));
+      Put(ds, DCM_PatientSex, get("PatientSex"));
+      Put(ds, DCM_StudyDate, get("StudyDate", now.substr(0, 8)));
+      Put(ds, DCM_StudyTime, get("StudyTime", now.substr(8)));
+      Put(ds, DCM_ReferringPhysicianName, get("ReferringPhysicianName"));
+      Put(ds, DCM_StudyID, get("StudyID"));
+      Put(ds, DCM_AccessionNumber, get("AccessionNumber"));
+      if (!get("StudyDescription").empty() || !fromDicom)
+        Put(ds, DCM_StudyDescription, get("StudyDescription", "Not from DICOM: placeholder study (dcv)"));
+      Put(ds, DCM_Modality, get("Modality", "OT"));
+      if (!get("BodyPartExamined").empty())
+        Put(ds, DCM_BodyPartExamined, get("BodyPartExamined"));
+      Put(ds, DCM_SeriesNumber, std::to_string(std::stoi(get("SeriesNumber", "0")) + 9000));
+      Put(ds, DCM_SeriesDescription, (get("SeriesDescription") + " dcv lossy").substr(0, 64));
+      Put(ds, DCM_Manufacturer, get("Manufacturer"));
+      if (!get("ManufacturerModelName").empty())
+        Put(ds, DCM_ManufacturerModelName, get("ManufacturerModelName"));
+      if (!get("InstitutionName").empty())
+        Put(ds, DCM_InstitutionName, get("InstitutionName"));
+      Put(ds, DCM_SoftwareVersions, "dcv 0.1.0");
+      Put(ds, DCM_InstanceNumber, std::to_string(z + 1));
+      Put(ds, DCM_ImageType, ct ? "DERIVED\\SECONDARY\\AXIAL" : "DERIVED\\SECONDARY");
+      Put(ds, DCM_DerivationDescription,
+          "Decoded from a DelaunayCompression .dcv file: lossy, a linear spline over an adaptive Delaunay "
+          "tetrahedralization");
+      Put(ds, DCM_LossyImageCompression, "01");
+      Put(ds, DCM_LossyImageCompressionRatio, Decimal(ratio));
+      Put(ds, DCM_LossyImageCompressionMethod, "DCV");
+      Put(ds, DCM_ContentDate, now.substr(0, 8));
+      Put(ds, DCM_ContentTime, now.substr(8));
+      if (!ct)
+      {
+        Put(ds, DCM_ConversionType, "WSD");
+        Put(ds, DCM_PatientOrientation, "");
+        Put(ds, DCM_Laterality, ""); // type 2C: the body part is not known
+      }
+      else
+      {
+        Put(ds, DCM_KVP, get("KVP"));
+        Put(ds, DCM_PatientPosition, get("PatientPosition")); // type 2C for CT
+        Put(ds, DCM_AcquisitionNumber, "");
+      }
+      // Image plane: axis 0 along a row (columns), axis 1 down a column (rows).
+      Put(ds, DCM_PixelSpacing, Decimal(header.spacing[1]) + "\\" + Decimal(header.spacing[0]));
+      Put(ds, DCM_ImageOrientationPatient,
+          Decimal(d[0]) + "\\" + Decimal(d[3]) + "\\" + Decimal(d[6]) + "\\" + Decimal(d[1]) + "\\" + Decimal(d[4]) +
+            "\\" + Decimal(d[7]));
+      std::string position;
+      for (int r = 0; r < 3; ++r)
+      {
+        position += (r ? "\\" : "") + Decimal(header.origin[r] + d[3 * r + 2] * header.spacing[2] * z);
+      }
+      Put(ds, DCM_ImagePositionPatient, position);
+      Put(ds, DCM_SliceThickness, get("SliceThickness", Decimal(header.spacing[2])));
+      Put(ds, DCM_SamplesPerPixel, "1");
+      Put(ds, DCM_PhotometricInterpretation, "MONOCHROME2");
+      Put(ds, DCM_Rows, std::to_string(ny));
+      Put(ds, DCM_Columns, std::to_string(nx));
+      Put(ds, DCM_BitsAllocated, "16");
+      Put(ds, DCM_BitsStored, std::to_string(enc.bitsStored));
+      Put(ds, DCM_HighBit, std::to_string(enc.bitsStored - 1));
+      Put(ds, DCM_PixelRepresentation, enc.isSigned ? "1" : "0");
+      Put(ds, DCM_RescaleIntercept, Decimal(enc.intercept));
+      Put(ds, DCM_RescaleSlope, Decimal(enc.slope));
+      if (!ct)
+        Put(ds, DCM_RescaleType, "US");
+      slice(z, values);
+      for (std::size_t i = 0; i < pixels.size(); ++i)
+      {
+        const double stored = std::clamp(std::round((values[i] - enc.intercept) / enc.slope), storedMin, storedMax);
+        pixels[i] = enc.isSigned ? Uint16(Sint16(stored)) : Uint16(stored);
+      }
+      if (ds.putAndInsertUint16Array(DCM_PixelData, pixels.data(), unsigned(pixels.size())).bad())
+      {
+        throw Failure("cannot store the pixel data of slice " + std::to_string(z + 1));
+      }
+      char name[32];
+      std::snprintf(name, sizeof(name), "IM%06d.dcm", int(z + 1));
+      const OFCondition c = file.saveFile((temporary / name).string().c_str(), EXS_LittleEndianExplicit);
+      if (c.bad())
+      {
+        throw Failure("cannot write " + Quoted((target / name).string()) + ": " + c.text());
+      }
+    }
+    const fs::path old = parent / (".dcv-" + std::to_string(::getpid()) + "-old-" + target.filename().string());
+    if (fs::exists(target))
+    {
+      fs::rename(target, old);
+    }
+    fs::rename(temporary, target);
+    fs::remove_all(old);
+  }
+  catch (...)
+  {
+    std::error_code ignored;
+    fs::remove_all(temporary, ignored);
+    throw;
+  }
+}
+
+} // namespace dcv::tools
