@@ -55,7 +55,7 @@ struct Approximation
  * unique for a point set, so it equals the encoder's mesh whatever the insertion order.
  * Throws std::invalid_argument on duplicate points. */
 DelaunayCompression_EXPORT std::vector<Tetrahedron>
-                           Tetrahedralize(const std::vector<GridPoint> & points, const GridScale & scale = { { 1, 1, 1 } });
+Tetrahedralize(const std::vector<GridPoint> & points, const GridScale & scale = { { 1, 1, 1 } });
 
 /** Checks that points lie on the grid and include its 8 corners; throws std::invalid_argument. */
 DelaunayCompression_EXPORT void

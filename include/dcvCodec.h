@@ -43,13 +43,8 @@ DelaunayCompression_EXPORT std::vector<uint8_t>
 /** Decodes `count` points and their values, with the tetrahedra over them, ready for Rasterize().
  * Throws FormatError starting with `name` when the payload is truncated or damaged. */
 DelaunayCompression_EXPORT Approximation
-DecodePayload(const std::vector<uint8_t> & payload,
-              const GridSize &             grid,
-              uint32_t                     count,
-              double                       q0,
-              double                       q,
-              const std::string &          name,
-              const GridScale &            scale = { { 1, 1, 1 } });
+DecodePayload(const std::vector<uint8_t> & payload, const GridSize & grid, uint32_t count, double q0, double q,
+              const std::string & name, const GridScale & scale = { { 1, 1, 1 } });
 
 /** The one "decode this file" function of every reader (ImageIO, MeshIO, ImageSource, the tools):
  * the points, values and tetrahedra of a parsed file, ready for Rasterize(). Throws FormatError naming

@@ -127,7 +127,7 @@ struct FileHeader
   std::array<double, 3> spacing{ 1.0, 1.0, 1.0 };
   std::array<double, 3> origin{ 0.0, 0.0, 0.0 };
   std::array<double, 9> direction{ 1, 0, 0, 0, 1, 0, 0, 0, 1 }; // row major
-  GridScale             scale{ { 1, 1, 1 } };                    // of the Delaunay space (FlagScale)
+  GridScale             scale{ { 1, 1, 1 } };                   // of the Delaunay space (FlagScale)
   double                quantizationOrigin{ 0.0 };
   double                quantizationStep{ 1.0 };
   uint32_t              numberOfPoints{ 0 };

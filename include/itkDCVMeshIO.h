@@ -41,10 +41,9 @@ namespace itk
  * DecodedPixelType, the pixel type a decoder gives the volume, is the reference image's pixel type
  * when it is an itk::Image of a .dcv pixel type, else it must be set. Scale, the Delaunay space of the
  * cells a reader rebuilds, is by default the one the approximation filter chooses from the reference
- * image's spacing (dcv::AutomaticScale); set it as the filter reports it (GetChosenScale()) otherwise. The file's mode is "unknown"
- * (FileHeader::UnknownMode): the points were not chosen by the encoder. For a file at a bit rate,
- * write the image with ImageFileWriter (DCVImageIO) instead.
- * \ingroup DelaunayCompression
+ * image's spacing (dcv::AutomaticScale); set it as the filter reports it (GetChosenScale()) otherwise. The file's mode
+ * is "unknown" (FileHeader::UnknownMode): the points were not chosen by the encoder. For a file at a bit rate, write
+ * the image with ImageFileWriter (DCVImageIO) instead. \ingroup DelaunayCompression
  */
 class DelaunayCompression_EXPORT DCVMeshIO : public MeshIOBase
 {

@@ -173,22 +173,22 @@ protected:
   GenerateData() override;
 
 private:
-  SizeValueType m_NumberOfPoints{ 10000 };
-  dcv::Mode     m_Mode{ dcv::Mode::Best };
-  double        m_DomainSigma{ 1.0 };
-  double        m_RangeSigma{ 0.0 };
-  double        m_Alpha{ 0.9 };
-  double        m_QuantizationStep{ 0.0 };
-  double        m_QuantizationOrigin{ 0.0 };
-  double        m_BitsPerVoxel{ 0.0 };
-  double        m_PSNR{ 0.0 };
+  SizeValueType  m_NumberOfPoints{ 10000 };
+  dcv::Mode      m_Mode{ dcv::Mode::Best };
+  double         m_DomainSigma{ 1.0 };
+  double         m_RangeSigma{ 0.0 };
+  double         m_Alpha{ 0.9 };
+  double         m_QuantizationStep{ 0.0 };
+  double         m_QuantizationOrigin{ 0.0 };
+  double         m_BitsPerVoxel{ 0.0 };
+  double         m_PSNR{ 0.0 };
   dcv::GridScale m_Scale{ { 0, 0, 0 } };
   dcv::GridScale m_ChosenScale{ { 1, 1, 1 } };
-  double        m_ChosenQuantizationStep{ 0.0 };
-  double        m_SquaredError{ 0.0 };
-  double        m_MeanSquaredError{ 0.0 };
-  double        m_SmoothedPSNR{ 0.0 };
-  Timings       m_Timings;
+  double         m_ChosenQuantizationStep{ 0.0 };
+  double         m_SquaredError{ 0.0 };
+  double         m_MeanSquaredError{ 0.0 };
+  double         m_SmoothedPSNR{ 0.0 };
+  Timings        m_Timings;
 };
 
 } // namespace itk

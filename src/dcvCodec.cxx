@@ -145,13 +145,8 @@ EncodePayload(const Approximation & a, double q0, double q)
 }
 
 Approximation
-DecodePayload(const std::vector<uint8_t> & payload,
-              const GridSize &             grid,
-              uint32_t                     count,
-              double                       q0,
-              double                       q,
-              const std::string &          name,
-              const GridScale &            scale)
+DecodePayload(const std::vector<uint8_t> & payload, const GridSize & grid, uint32_t count, double q0, double q,
+              const std::string & name, const GridScale & scale)
 {
   ArithmeticDecoder decoder(payload.data(), payload.size());
   Approximation     a;

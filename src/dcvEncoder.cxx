@@ -86,7 +86,8 @@ CheckOptions(const EncoderOptions & o)
   for (int32_t s : o.scale)
   {
     if (!automatic && (s < 1 || s > MaximumGridScale))
-      refuse("Scale (--scale)", "1 to " + std::to_string(MaximumGridScale) + " on each axis, or 0 on all: automatic", s);
+      refuse(
+        "Scale (--scale)", "1 to " + std::to_string(MaximumGridScale) + " on each axis, or 0 on all: automatic", s);
   }
 }
 

@@ -175,8 +175,12 @@ TEST_F(DicomInput, ListsTheSeriesOfADirectoryThatHoldsSeveral)
     Edit("other-" + file, DCM_SOPInstanceUID, "1.2.826.0.1.3680043.2.1125.42." + file.substr(1, file.size() - 5));
     Edit("other-" + file, DCM_SeriesDescription, "THREE SLICES");
   }
-  ExpectRefused({ "holds 2 DICOM series; choose one with --series UID", uid, "1.2.826.0.1.3680043.2.1125.42",
-                  "28 slices", "3 slices", "THREE SLICES" });
+  ExpectRefused({ "holds 2 DICOM series; choose one with --series UID",
+                  uid,
+                  "1.2.826.0.1.3680043.2.1125.42",
+                  "28 slices",
+                  "3 slices",
+                  "THREE SLICES" });
   const Result r = RunDcv("compress " + m_Series + " " + Path("out.dcv") + " --points 100 -m silva --series " + uid);
   EXPECT_EQ(r.status, 0) << r.output;
 }
@@ -217,7 +221,7 @@ DciodvfyErrors(const std::string & directory, std::size_t & files)
   for (const auto & entry : fs::directory_iterator(directory))
   {
     ++files;
-    const Result r = dcv::test::RunCommand("dciodvfy '" + entry.path().string() + "' 2>&1");
+    const Result       r = dcv::test::RunCommand("dciodvfy '" + entry.path().string() + "' 2>&1");
     std::istringstream lines(r.output);
     for (std::string line; std::getline(lines, line);)
     {

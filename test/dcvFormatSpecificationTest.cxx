@@ -279,7 +279,8 @@ protected:
     EXPECT_EQ(numbers(field("spacing")), std::vector<double>(h.spacing.begin(), h.spacing.end()));
     EXPECT_EQ(numbers(field("origin")), std::vector<double>(h.origin.begin(), h.origin.end()));
     EXPECT_EQ(numbers(field("direction")), std::vector<double>(h.direction.begin(), h.direction.end()));
-    EXPECT_EQ(numbers(field("scale")), (std::vector<double>{ double(h.scale[0]), double(h.scale[1]), double(h.scale[2]) }));
+    EXPECT_EQ(numbers(field("scale")),
+              (std::vector<double>{ double(h.scale[0]), double(h.scale[1]), double(h.scale[2]) }));
     EXPECT_EQ(numbers(field("quantization_origin")), std::vector<double>{ h.quantizationOrigin });
     EXPECT_EQ(numbers(field("quantization_step")), std::vector<double>{ h.quantizationStep });
     EXPECT_EQ(field("points"), Tokens{ std::to_string(h.numberOfPoints) });
@@ -367,7 +368,7 @@ TEST_F(FormatSpecification, DirectionAndMetadata)
 TEST_F(FormatSpecification, ScaledDelaunaySpace)
 {
   // Thick slices: the tetrahedralization of (x, y, 5 z); the value prediction follows its neighbours.
-  FileHeader    h;
+  FileHeader h;
   h.spacing = { 0.5, 0.5, 2.5 };
   h.quantizationStep = 4.0;
   Approximation a = Phantom(GridSize{ 30, 28, 12 }, Mode::Dec, 400, 0.0, 4.0);

@@ -157,8 +157,8 @@ FindDicomSeries(const std::string & path, const std::string & uid, std::size_t &
                           : "no series " + Quoted(wanted) + " in " + Quoted(directory.string()) + "; it holds:");
   for (const auto & s : all)
   {
-    list << "\n  " << s.uid << "  " << (s.modality.empty() ? "?" : s.modality) << "  " << s.files.size()
-         << " slices  " << s.columns << "x" << s.rows << "  " << Quoted(s.description);
+    list << "\n  " << s.uid << "  " << (s.modality.empty() ? "?" : s.modality) << "  " << s.files.size() << " slices  "
+         << s.columns << "x" << s.rows << "  " << Quoted(s.description);
   }
   throw Failure(list.str());
 }
@@ -183,21 +183,35 @@ DicomMetadata(const DicomSeries & series)
   // The attributes a derived series keeps (DICOM PS3.3: patient, general study, frame of reference,
   // general series and equipment, acquisition), by keyword.
   static const std::pair<const char *, const char *> kept[] = {
-    { "0010|0010", "PatientName" },       { "0010|0020", "PatientID" },
-    { "0010|0030", "PatientBirthDate" },  { "0010|0040", "PatientSex" },
-    { "0020|000d", "StudyInstanceUID" },  { "0008|0020", "StudyDate" },
-    { "0008|0030", "StudyTime" },         { "0020|0010", "StudyID" },
-    { "0008|0050", "AccessionNumber" },   { "0008|0090", "ReferringPhysicianName" },
-    { "0008|1030", "StudyDescription" },  { "0020|0052", "FrameOfReferenceUID" },
-    { "0008|0060", "Modality" },          { "0018|0015", "BodyPartExamined" },
-    { "0020|000e", "SeriesInstanceUID" }, { "0020|0011", "SeriesNumber" },
-    { "0008|103e", "SeriesDescription" }, { "0008|0070", "Manufacturer" },
-    { "0008|1090", "ManufacturerModelName" }, { "0008|0080", "InstitutionName" },
-    { "0018|0050", "SliceThickness" },    { "0018|0060", "KVP" },
-    { "0008|0022", "AcquisitionDate" },   { "0020|0037", "ImageOrientationPatient" },
+    { "0010|0010", "PatientName" },
+    { "0010|0020", "PatientID" },
+    { "0010|0030", "PatientBirthDate" },
+    { "0010|0040", "PatientSex" },
+    { "0020|000d", "StudyInstanceUID" },
+    { "0008|0020", "StudyDate" },
+    { "0008|0030", "StudyTime" },
+    { "0020|0010", "StudyID" },
+    { "0008|0050", "AccessionNumber" },
+    { "0008|0090", "ReferringPhysicianName" },
+    { "0008|1030", "StudyDescription" },
+    { "0020|0052", "FrameOfReferenceUID" },
+    { "0008|0060", "Modality" },
+    { "0018|0015", "BodyPartExamined" },
+    { "0020|000e", "SeriesInstanceUID" },
+    { "0020|0011", "SeriesNumber" },
+    { "0008|103e", "SeriesDescription" },
+    { "0008|0070", "Manufacturer" },
+    { "0008|1090", "ManufacturerModelName" },
+    { "0008|0080", "InstitutionName" },
+    { "0018|0050", "SliceThickness" },
+    { "0018|0060", "KVP" },
+    { "0008|0022", "AcquisitionDate" },
+    { "0020|0037", "ImageOrientationPatient" },
     { "0018|5100", "PatientPosition" },
-    { "0028|1052", "RescaleIntercept" },  { "0028|1053", "RescaleSlope" },
-    { "0028|0101", "BitsStored" },        { "0028|0103", "PixelRepresentation" },
+    { "0028|1052", "RescaleIntercept" },
+    { "0028|1053", "RescaleSlope" },
+    { "0028|0101", "BitsStored" },
+    { "0028|0103", "PixelRepresentation" },
   };
   const auto                                       io = ReadHeader(series.files.front());
   std::vector<std::pair<std::string, std::string>> metadata;
@@ -237,8 +251,10 @@ CheckDicomSlices(const std::string & name, const std::vector<DicomSlice> & slice
       }
     }
   }
-  const auto & o = first.orientation;
-  const std::array<double, 3> normal{ { o[1] * o[5] - o[2] * o[4], o[2] * o[3] - o[0] * o[5], o[0] * o[4] - o[1] * o[3] } };
+  const auto &                o = first.orientation;
+  const std::array<double, 3> normal{
+    { o[1] * o[5] - o[2] * o[4], o[2] * o[3] - o[0] * o[5], o[0] * o[4] - o[1] * o[3] }
+  };
   std::vector<double> gaps;
   for (std::size_t i = 1; i < slices.size(); ++i)
   {
@@ -276,13 +292,13 @@ CheckDicomSlices(const std::string & name, const std::vector<DicomSlice> & slice
     {
       const double ratio = gaps[i] / usual;
       const bool   missing = ratio > 1.5 && std::abs(ratio - std::round(ratio)) < 0.05;
-      throw Failure(name + (missing ? ": missing slice" + std::string(std::round(ratio) > 2.0 ? "s" : "") +
-                                        " between slices " + std::to_string(i + 1) + " and " + std::to_string(i + 2) +
-                                        " (a gap of " + Millimetres(gaps[i]) + " where slices are " +
-                                        Millimetres(usual) + " apart)"
-                                    : ": uneven slice spacing: " + Millimetres(gaps[i]) + " between slices " +
-                                        std::to_string(i + 1) + " and " + std::to_string(i + 2) + ", " +
-                                        Millimetres(usual) + " elsewhere"));
+      throw Failure(
+        name + (missing
+                  ? ": missing slice" + std::string(std::round(ratio) > 2.0 ? "s" : "") + " between slices " +
+                      std::to_string(i + 1) + " and " + std::to_string(i + 2) + " (a gap of " + Millimetres(gaps[i]) +
+                      " where slices are " + Millimetres(usual) + " apart)"
+                  : ": uneven slice spacing: " + Millimetres(gaps[i]) + " between slices " + std::to_string(i + 1) +
+                      " and " + std::to_string(i + 2) + ", " + Millimetres(usual) + " elsewhere"));
     }
   }
 }

@@ -82,11 +82,9 @@ Put(DcmDataset & d, const DcmTagKey & key, const std::string & value)
 } // namespace
 
 void
-WriteDicomSeries(const FileHeader &                                                 header,
-                 std::size_t                                                        compressedBytes,
+WriteDicomSeries(const FileHeader & header, std::size_t compressedBytes,
                  const std::function<void(int32_t z, std::vector<double> & values)> & slice,
-                 const std::string &                                                directory,
-                 bool                                                               force)
+                 const std::string & directory, bool force)
 {
   const fs::path target(directory);
   if (fs::exists(target) && !fs::is_directory(target))
@@ -108,12 +106,12 @@ WriteDicomSeries(const FileHeader &                                             
     if (key.rfind("DICOM ", 0) == 0)
       m[key.substr(6)] = value;
   }
-  const bool  fromDicom = m.count("StudyInstanceUID") > 0;
-  const auto  get = [&m](const char * key, const std::string & otherwise = "") {
+  const bool fromDicom = m.count("StudyInstanceUID") > 0;
+  const auto get = [&m](const char * key, const std::string & otherwise = "") {
     const auto it = m.find(key);
     return it == m.end() ? otherwise : it->second;
   };
-  const bool  ct = get("Modality") == "CT";
+  const bool    ct = get("Modality") == "CT";
   const int32_t nx = header.size.x, ny = header.size.y, nz = header.size.z;
   if (nx > 65535 || ny > 65535)
   {
@@ -131,7 +129,7 @@ WriteDicomSeries(const FileHeader &                                             
   }
   else
   {
-    double lo = std::numeric_limits<double>::infinity(), hi = -lo;
+    double              lo = std::numeric_limits<double>::infinity(), hi = -lo;
     std::vector<double> values;
     for (int32_t z = 0; z < nz; ++z)
     {
@@ -162,7 +160,7 @@ WriteDicomSeries(const FileHeader &                                             
   const std::string study = fromDicom ? get("StudyInstanceUID") : NewUid();
   const std::string frame = get("FrameOfReferenceUID", NewUid());
   const std::string now = [] {
-    char             date[32];
+    char              date[32];
     const std::time_t t = std::time(nullptr);
     std::strftime(date, sizeof(date), "%Y%m%d%H%M%S", std::gmtime(&t));
     return std::string(date);
@@ -176,9 +174,9 @@ WriteDicomSeries(const FileHeader &                                             
   fs::create_directories(temporary);
   try
   {
-    std::vector<double>   values;
-    std::vector<Uint16>   pixels(std::size_t(nx) * std::size_t(ny));
-    const auto &          d = header.direction; // row major: column j is axis j's direction
+    std::vector<double> values;
+    std::vector<Uint16> pixels(std::size_t(nx) * std::size_t(ny));
+    const auto &        d = header.direction; // row major: column j is axis j's direction
     for (int32_t z = 0; z < nz; ++z)
     {
       DcmFileFormat file;
@@ -213,7 +211,8 @@ WriteDicomSeries(const FileHeader &                                             
       Put(ds, DCM_SoftwareVersions, "dcv 0.1.0");
       Put(ds, DCM_InstanceNumber, std::to_string(z + 1));
       Put(ds, DCM_ImageType, ct ? "DERIVED\\SECONDARY\\AXIAL" : "DERIVED\\SECONDARY");
-      Put(ds, DCM_DerivationDescription,
+      Put(ds,
+          DCM_DerivationDescription,
           "Decoded from a DelaunayCompression .dcv file: lossy, a linear spline over an adaptive Delaunay "
           "tetrahedralization");
       Put(ds, DCM_LossyImageCompression, "01");
@@ -235,7 +234,8 @@ WriteDicomSeries(const FileHeader &                                             
       }
       // Image plane: axis 0 along a row (columns), axis 1 down a column (rows).
       Put(ds, DCM_PixelSpacing, Decimal(header.spacing[1]) + "\\" + Decimal(header.spacing[0]));
-      Put(ds, DCM_ImageOrientationPatient,
+      Put(ds,
+          DCM_ImageOrientationPatient,
           Decimal(d[0]) + "\\" + Decimal(d[3]) + "\\" + Decimal(d[6]) + "\\" + Decimal(d[1]) + "\\" + Decimal(d[4]) +
             "\\" + Decimal(d[7]));
       std::string position;

@@ -35,11 +35,9 @@ namespace dcv::tools
  * (unless `force`); the series is written to a temporary directory beside it and renamed at the end, so
  * that a failure leaves nothing. `compressedBytes` gives the Lossy Image Compression Ratio. */
 void
-WriteDicomSeries(const FileHeader &                                             header,
-                 std::size_t                                                    compressedBytes,
+WriteDicomSeries(const FileHeader & header, std::size_t compressedBytes,
                  const std::function<void(int32_t z, std::vector<double> & values)> & slice,
-                 const std::string &                                            directory,
-                 bool                                                           force);
+                 const std::string & directory, bool force);
 
 } // namespace dcv::tools
 

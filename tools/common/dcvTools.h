@@ -84,8 +84,8 @@ struct VolumeInput
 {
   std::string                                      path;
   PixelType                                        type{ PixelType::UInt8 };
-  DicomSeries                                      dicom;    // files empty: not DICOM
-  std::vector<std::pair<std::string, std::string>> metadata; // what a derived file keeps (DICOM attributes)
+  DicomSeries                                      dicom;        // files empty: not DICOM
+  std::vector<std::pair<std::string, std::string>> metadata;     // what a derived file keeps (DICOM attributes)
   std::size_t                                      skipped{ 0 }; // files of a DICOM directory that are not DICOM
 };
 

@@ -55,12 +55,12 @@ struct RegisterCommand
 /** The method's options as approximate and compress take them. */
 struct MethodOptions
 {
-  EncoderOptions encoder;
-  std::string    mode{ "best" };
+  EncoderOptions       encoder;
+  std::string          mode{ "best" };
   std::vector<int32_t> scale;  // --scale, when given
   std::string          series; // --series: the Series Instance UID of a DICOM input
-  bool           force{ false };
-  bool           quiet{ false };
+  bool                 force{ false };
+  bool                 quiet{ false };
 
   /** The encoder options with the mode parsed, every value checked (Failure otherwise), and progress
    * shown as `label` on a terminal unless quiet. */
@@ -72,12 +72,8 @@ struct MethodOptions
  * files, then calls f(image, input) with the image read in its own pixel type. */
 template <typename TFunction>
 void
-WithVolume(const std::string &   input,
-           const std::string &   series,
-           const std::string &   output,
-           const MethodOptions & o,
-           bool                  dcvFile,
-           TFunction &&          f)
+WithVolume(const std::string & input, const std::string & series, const std::string & output, const MethodOptions & o,
+           bool dcvFile, TFunction && f)
 {
   const VolumeInput volume = OpenVolume(input, series);
   CheckOutput(output, o.force, dcvFile);

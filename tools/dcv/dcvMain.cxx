@@ -83,9 +83,8 @@ AddMethodOptions(CLI::App & command, std::string & input, MethodOptions & o)
   command.add_option("--alpha", o.encoder.alpha, "Choose positions on I* until PSNR >= alpha * PSNR(I*)")
     ->capture_default_str();
   command
-    .add_option("--scale",
-                o.scale,
-                "Delaunay space per axis: SX,SY,SZ (integers 1 to 16), or 0,0,0: from the voxel spacing")
+    .add_option(
+      "--scale", o.scale, "Delaunay space per axis: SX,SY,SZ (integers 1 to 16), or 0,0,0: from the voxel spacing")
     ->delimiter(',')
     ->expected(3);
   command.add_flag("--force,-f", o.force, "Overwrite OUTPUT if it exists");
