@@ -178,8 +178,13 @@ Run(const EncoderInput & input, const EncoderOptions & o, bool coded, std::vecto
     throw std::invalid_argument("the encoder needs the voxels, and I* in modes that use it");
   }
   const uint64_t voxels = grid.NumberOfVoxels();
-  const auto     range = std::minmax_element(input.voxels, input.voxels + voxels);
-  const bool     integer = IsInteger(input.header.pixelType);
+  if (o.numberOfPoints > voxels && o.bitsPerVoxel == 0.0 && o.psnr == 0.0)
+  {
+    throw std::invalid_argument("NumberOfPoints (--points) must be at most the number of voxels, " +
+                                std::to_string(voxels) + ", got " + std::to_string(o.numberOfPoints));
+  }
+  const auto range = std::minmax_element(input.voxels, input.voxels + voxels);
+  const bool integer = IsInteger(input.header.pixelType);
 
   RefinementParameters parameters = ParametersForMode(o.mode);
   parameters.alpha = o.alpha;

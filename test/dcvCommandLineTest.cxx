@@ -409,4 +409,16 @@ TEST_F(CommandLine, AFailedWriteLeavesNoFile)
   EXPECT_EQ(files, 2u); // phantom.nrrd and p.dcv
 }
 
+TEST_F(CommandLine, PointCountsBeyondTheVolumeAreRefused)
+{
+  const std::string phantom = Path("phantom.nrrd");
+  ASSERT_EQ(RunDcv("phantom " + phantom + " --size 16").status, 0);
+  Result r = RunDcv("compress " + phantom + " " + Path("x.dcv") + " --points -1");
+  EXPECT_EQ(r.status, 1) << r.output;
+  r = RunDcv("compress " + phantom + " " + Path("x.dcv") + " --points 10000000");
+  EXPECT_EQ(r.status, 1) << r.output;
+  EXPECT_NE(r.output.find("at most the number of voxels, 4096"), std::string::npos) << r.output;
+  EXPECT_FALSE(fs::exists(Path("x.dcv")));
+}
+
 } // namespace

@@ -79,6 +79,7 @@ const RegisterCommand approximate{
       AddMethodOptions(command, a->input, a->method);
       command.add_option("OUTPUT", a->output, "Output volume (format from its extension)")->required();
       command.add_option("--points,-n", a->method.encoder.numberOfPoints, "Number of significant points (at least 8)")
+        ->check(CLI::NonNegativeNumber)
         ->capture_default_str();
       return [a] { Approximate(*a); };
     } }

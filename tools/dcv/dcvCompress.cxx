@@ -82,6 +82,7 @@ const RegisterCommand compress{
       auto * psnr =
         command.add_option("--psnr", e.psnr, "Quality target, dB: the smallest file whose decoded PSNR reaches it");
       auto * points = command.add_option("--points,-n", e.numberOfPoints, "Number of significant points (at least 8)")
+                        ->check(CLI::NonNegativeNumber)
                         ->capture_default_str();
       bpv->excludes(psnr)->excludes(points);
       psnr->excludes(points);
