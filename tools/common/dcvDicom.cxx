@@ -226,6 +226,27 @@ DicomMetadata(const DicomSeries & series)
   return metadata;
 }
 
+std::vector<DicomSlice>
+ReadDicomSlices(const DicomSeries & series)
+{
+  std::vector<DicomSlice> slices;
+  for (const auto & file : series.files)
+  {
+    const auto io = ReadHeader(file);
+    DicomSlice s;
+    for (unsigned d = 0; d < 3; ++d)
+    {
+      s.position[d] = io->GetOrigin(d);
+      s.orientation[d] = io->GetDirection(0)[d];
+      s.orientation[3 + d] = io->GetDirection(1)[d];
+    }
+    s.columns = unsigned(io->GetDimensions(0));
+    s.rows = unsigned(io->GetDimensions(1));
+    slices.push_back(s);
+  }
+  return slices;
+}
+
 void
 CheckDicomSlices(const std::string & name, const std::vector<DicomSlice> & slices)
 {

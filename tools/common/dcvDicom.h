@@ -70,6 +70,10 @@ struct DicomSlice
   unsigned              columns{ 0 };
 };
 
+/** The geometry of every slice of the series, from each file's header. */
+std::vector<DicomSlice>
+ReadDicomSlices(const DicomSeries & series);
+
 /** Refuses, with a message naming the series and what was found, slices of different size or
  * orientation, slices not stacked along the normal of their orientation (gantry tilt), uneven spacing
  * and missing slices. */

@@ -108,31 +108,7 @@ OpenVolume(const std::string & path, const std::string & series)
     return v;
   }
   v.dicom = FindDicomSeries(path, series, v.skipped);
-  std::vector<DicomSlice> slices;
-  for (const auto & file : v.dicom.files)
-  {
-    auto io = itk::GDCMImageIO::New();
-    io->SetFileName(file);
-    try
-    {
-      io->ReadImageInformation();
-    }
-    catch (const itk::ExceptionObject & e)
-    {
-      throw Failure("cannot read " + Quoted(file) + ": " + e.GetDescription());
-    }
-    DicomSlice s;
-    for (unsigned d = 0; d < 3; ++d)
-    {
-      s.position[d] = io->GetOrigin(d);
-      s.orientation[d] = io->GetDirection(0)[d];
-      s.orientation[3 + d] = io->GetDirection(1)[d];
-    }
-    s.columns = unsigned(io->GetDimensions(0));
-    s.rows = unsigned(io->GetDimensions(1));
-    slices.push_back(s);
-  }
-  CheckDicomSlices("the DICOM series " + Quoted(path), slices);
+  CheckDicomSlices("the DICOM series " + Quoted(path), ReadDicomSlices(v.dicom));
   v.type = DicomPixelType(v.dicom);
   v.metadata = DicomMetadata(v.dicom);
   return v;
