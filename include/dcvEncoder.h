@@ -116,6 +116,8 @@ struct EncoderResult
   double psnr{ 0.0 };
   /** PSNR(I*) against I (0 when the mode does not smooth). */
   double smoothedPSNR{ 0.0 };
+  /** The PSNR peak (255 for 8-bit data, else max - min of the input). */
+  double peak{ 0.0 };
   /** Point-count steps of rate control after the first run of the method. */
   unsigned adjustments{ 0 };
   /** Seconds of each stage, and of the whole call. */

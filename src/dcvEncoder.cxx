@@ -268,6 +268,7 @@ Run(const EncoderInput & input, const EncoderOptions & o, bool coded, std::vecto
   r.header.numberOfPoints = uint32_t(r.approximation.points.size());
   r.squaredError = engine.GetSquaredError();
   r.smoothedPSNR = engine.GetSmoothedPSNR();
+  r.peak = parameters.peak;
   r.timings.refinement = engine.GetTimings().refinement;
   r.timings.decimation = engine.GetTimings().decimation;
   r.timings.leastSquares = engine.GetTimings().leastSquares;
@@ -295,7 +296,7 @@ Encode(const EncoderInput & input, const EncoderOptions & options)
   {
     throw std::logic_error("internal error: " + std::to_string(r.bytes.size()) + " bytes exceed the bit budget");
   }
-  r.psnr = PSNR(DecodedSquaredError(r.approximation, r.header.pixelType, input.voxels), voxels, PSNRPeak(input));
+  r.psnr = PSNR(DecodedSquaredError(r.approximation, r.header.pixelType, input.voxels), voxels, r.peak);
   r.timings.total = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
   return r;
 }
