@@ -40,7 +40,16 @@ namespace dcv
 /** Four indices into the point list. */
 using Tetrahedron = std::array<uint32_t, 4>;
 
-/** Significant points and the tetrahedra over them, on a voxel grid. */
+/** The residual layer of a decoded file (dcvResidualLayer.h): a voxel is the spline's voxel plus
+ * `step` times its sample, converted to the pixel type again. None when `samples` is empty. */
+struct Residual
+{
+  double               step{ 0.0 };
+  std::vector<int32_t> samples; // laid out as the grid
+};
+
+/** Significant points and the tetrahedra over them, on a voxel grid; and the residual layer of a
+ * decoded file that has one. */
 struct Approximation
 {
   GridSize                 grid;
@@ -48,7 +57,16 @@ struct Approximation
   std::vector<GridPoint>   points;
   std::vector<double>      values;
   std::vector<Tetrahedron> tetrahedra;
+  Residual                 residual;
 };
+
+/** Adds the residual layer to a voxel the spline gave: the one rule of every decoder. */
+template <typename T>
+inline T
+AddResidual(T splineVoxel, const Residual & r, uint64_t voxel)
+{
+  return ConvertValue<T>(double(splineVoxel) + r.step * double(r.samples[voxel]));
+}
 
 /** The Delaunay tetrahedralization of grid points (CGAL, exact predicates, symbolic perturbation),
  * listed in a spatially coherent order:
@@ -62,8 +80,8 @@ DelaunayCompression_EXPORT void
 CheckPoints(const GridSize & grid, const std::vector<GridPoint> & points);
 
 /** Rasterizes every tetrahedron into `out` (laid out as the grid; voxels no cell owns are left as
- * they are). Cells own disjoint voxels, so `threads` threads (0: one per core) share them without
- * locks, and the result does not depend on the order. */
+ * they are), then adds the residual layer if there is one. Cells own disjoint voxels, so `threads` threads (0: one per
+ * core) share them without locks, and the result does not depend on the order. */
 template <typename T>
 void
 Rasterize(const Approximation & a, T * out, unsigned int threads = 0)
@@ -102,11 +120,16 @@ Rasterize(const Approximation & a, T * out, unsigned int threads = 0)
   {
     t.join();
   }
+  if (!a.residual.samples.empty())
+  {
+    for (uint64_t i = 0, n = a.grid.NumberOfVoxels(); i < n; ++i)
+      out[i] = AddResidual(out[i], a.residual, i);
+  }
 }
 
 /** Rasterizes only the voxels of the box [first, last] (inclusive grid coordinates) into `out`, laid
  * out as that box (x fastest); cells whose bounding box misses the box are skipped. The values are
- * the very ones Rasterize() gives. Returns the number of cells rasterized. */
+ * the very ones Rasterize() gives, residual layer included. Returns the number of cells rasterized. */
 template <typename T>
 std::size_t
 RasterizeBox(const Approximation & a, const GridPoint & first, const GridPoint & last, T * out)
@@ -143,6 +166,14 @@ RasterizeBox(const Approximation & a, const GridPoint & first, const GridPoint &
         row[x] = ConvertValue<T>(base + L.gx * double(x - L.origin[0]));
       }
     });
+  }
+  if (!a.residual.samples.empty())
+  {
+    T * voxel = out;
+    for (int32_t z = first[2]; z <= last[2]; ++z)
+      for (int32_t y = first[1]; y <= last[1]; ++y)
+        for (int32_t x = first[0]; x <= last[0]; ++x, ++voxel)
+          *voxel = AddResidual(*voxel, a.residual, a.grid.Offset(x, y, z));
   }
   return cells;
 }

@@ -58,6 +58,10 @@ struct EncoderOptions
   /** Per-axis scale of the Delaunay space (GridScale); 0 on every axis: from the voxel spacing
    * (AutomaticScale). */
   GridScale scale{ { 0, 0, 0 } };
+  /** With BitsPerVoxel, also try the residual layer (JPEG 2000 of what the spline leaves,
+   * dcvResidualLayer.h): in the bytes the points leave, and with all of the budget over the 8 corners;
+   * the file keeps whichever of the three decodes closest to the input. Off: points only. */
+  bool residualLayer{ true };
   /** Key/value pairs stored in the file's metadata block (they count against the bit budget). */
   std::vector<std::pair<std::string, std::string>> metadata;
   /** Called with the fraction done, in [0, 1]; it may throw to abort. */
@@ -110,7 +114,8 @@ struct EncoderResult
   Approximation approximation;
   /** Quantization step of the values (0: not quantized; Approximate without a step or target). */
   double quantizationStep{ 0.0 };
-  /** Sum over voxels of (I - L)^2 for the unrounded spline L. */
+  /** Sum over voxels of (I - L)^2 for the unrounded spline L; with a residual layer, of the decoded
+   * volume. */
   double squaredError{ 0.0 };
   /** PSNR of the image a decoder gives (rounded and clamped to the pixel type), Encode only. */
   double psnr{ 0.0 };
@@ -127,6 +132,7 @@ struct EncoderResult
     double refinement{ 0.0 };
     double decimation{ 0.0 };
     double leastSquares{ 0.0 };
+    double residualLayer{ 0.0 };
     double total{ 0.0 };
   } timings;
 };

@@ -30,7 +30,8 @@
 #include <vector>
 
 /** \file dcvFileFormat.h
- * The container of a .dcv file (docs/format.md): header, coded payload, optional metadata, CRC-32.
+ * The container of a .dcv file (docs/format.md): header, coded payload, optional residual layer and
+ * metadata, CRC-32.
  * One reader and one writer; the coding of the payload lives elsewhere.
  * \ingroup DelaunayCompression
  */
@@ -132,6 +133,10 @@ struct FileHeader
   double                quantizationStep{ 1.0 };
   uint32_t              numberOfPoints{ 0 };
   std::vector<std::pair<std::string, std::string>> metadata; // UTF-8 key/value pairs
+  /** The residual layer (FlagResidual, dcvResidualLayer.h): its step (0: the file has none) and its
+   * JPEG 2000 codestream. */
+  double               residualStep{ 0.0 };
+  std::vector<uint8_t> residualLayer;
 };
 
 /** The bytes of a whole file. */

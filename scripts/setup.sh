@@ -8,6 +8,8 @@ packages=(
   libcgal-dev             # Delaunay tetrahedralization (exact predicates)
   libeigen3-dev           # sparse least squares of the vertex values
   zlib1g-dev              # crc32 of the .dcv files
+  libopenjp2-7-dev        # JPEG 2000 of the residual layer
+  libopenjp2-tools        # opj_decompress: the reference decoder's residual layer
   libcli11-dev            # dcv's arguments
   libgtest-dev            # tests
   libdcmtk-dev            # DICOM series out; the tests edit copies of the dev series

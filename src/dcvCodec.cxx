@@ -16,6 +16,7 @@
  *
  *=========================================================================*/
 #include "dcvCodec.h"
+#include "dcvResidualLayer.h"
 #include "dcvArithmeticCoder.h"
 #include "dcvFileFormat.h"
 #include "dcvPositionCoder.h"
@@ -198,8 +199,13 @@ Approximation
 Decode(const CompressedFile & file)
 {
   const FileHeader & h = file.header;
-  return DecodePayload(
-    file.payload, h.size, h.numberOfPoints, h.quantizationOrigin, h.quantizationStep, file.name, h.scale);
+  Approximation      a =
+    DecodePayload(file.payload, h.size, h.numberOfPoints, h.quantizationOrigin, h.quantizationStep, file.name, h.scale);
+  if (h.residualStep > 0.0)
+  {
+    a.residual = { h.residualStep, DecodeResidualLayer(h.residualLayer, h.size, file.name) };
+  }
+  return a;
 }
 
 } // namespace dcv

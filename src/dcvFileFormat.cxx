@@ -34,6 +34,7 @@ constexpr uint8_t Magic[4] = { 0x89, 'D', 'C', 'V' };
 constexpr uint8_t FlagDirection = 1; // a non-identity direction matrix follows the origin
 constexpr uint8_t FlagMetadata = 2;  // a metadata block follows the payload
 constexpr uint8_t FlagScale = 4;     // three per-axis scales of the Delaunay space follow the direction
+constexpr uint8_t FlagResidual = 8;  // a residual layer follows the payload
 
 class Writer
 {
@@ -213,6 +214,12 @@ SerializeFile(const FileHeader & h, const std::vector<uint8_t> & payload)
   const bool direction = !IsIdentity(h.direction);
   const bool metadata = !h.metadata.empty();
   const bool scaled = h.scale != GridScale{ { 1, 1, 1 } };
+  const bool residual = h.residualStep != 0.0;
+  if (residual && (!(h.residualStep > 0.0) || !std::isfinite(h.residualStep) || h.residualLayer.empty() ||
+                   h.residualLayer.size() > 0xffffffffu))
+  {
+    throw std::invalid_argument("a .dcv residual layer needs a positive step and a codestream below 4 GiB");
+  }
   for (int32_t s : h.scale)
   {
     if (s < 1 || s > MaximumGridScale)
@@ -223,7 +230,8 @@ SerializeFile(const FileHeader & h, const std::vector<uint8_t> & payload)
   w.Bytes(Magic, 4);
   w.U8(FileHeader::Version);
   w.U8(uint8_t(h.pixelType));
-  w.U8(uint8_t((direction ? FlagDirection : 0) | (metadata ? FlagMetadata : 0) | (scaled ? FlagScale : 0)));
+  w.U8(uint8_t((direction ? FlagDirection : 0) | (metadata ? FlagMetadata : 0) | (scaled ? FlagScale : 0) |
+               (residual ? FlagResidual : 0)));
   w.U8(h.mode);
   w.U16(uint16_t(h.size.x));
   w.U16(uint16_t(h.size.y));
@@ -247,6 +255,12 @@ SerializeFile(const FileHeader & h, const std::vector<uint8_t> & payload)
   w.U32(h.numberOfPoints);
   w.U32(uint32_t(payload.size()));
   w.Bytes(payload.data(), payload.size());
+  if (residual)
+  {
+    w.F64(h.residualStep);
+    w.U32(uint32_t(h.residualLayer.size()));
+    w.Bytes(h.residualLayer.data(), h.residualLayer.size());
+  }
   if (metadata)
   {
     Writer block;
@@ -303,7 +317,7 @@ ParseFile(const std::vector<uint8_t> & bytes, const std::string & name, FileHead
   }
   h.pixelType = PixelType(type);
   const uint8_t flags = r.U8("header");
-  if (flags & ~(FlagDirection | FlagMetadata | FlagScale))
+  if (flags & ~(FlagDirection | FlagMetadata | FlagScale | FlagResidual))
   {
     throw FormatError(name + ": unknown header flags " + std::to_string(flags));
   }
@@ -361,6 +375,25 @@ ParseFile(const std::vector<uint8_t> & bytes, const std::string & name, FileHead
   }
   payload.assign(bytes.begin() + std::ptrdiff_t(r.Position()), bytes.begin() + std::ptrdiff_t(r.Position() + length));
   r.Skip(length);
+  h.residualStep = 0.0;
+  h.residualLayer.clear();
+  if (flags & FlagResidual)
+  {
+    h.residualStep = r.F64("residual layer");
+    if (!(h.residualStep > 0.0) || !std::isfinite(h.residualStep))
+    {
+      throw FormatError(name + ": invalid residual step");
+    }
+    const uint32_t size = r.U32("residual layer");
+    if (size == 0 || size > r.Left())
+    {
+      throw FormatError(name + ": truncated (the residual layer is " + std::to_string(size) + " bytes, " +
+                        std::to_string(r.Left()) + " remain)");
+    }
+    h.residualLayer.assign(bytes.begin() + std::ptrdiff_t(r.Position()),
+                           bytes.begin() + std::ptrdiff_t(r.Position() + size));
+    r.Skip(size);
+  }
   h.metadata.clear();
   if (flags & FlagMetadata)
   {

@@ -61,6 +61,10 @@ Compress(const CompressOptions & c)
               << "bytes: " << r.bytes.size() << "\n"
               << "bpv: " << double(r.bytes.size()) * 8.0 / voxels << "\n"
               << "points: " << r.header.numberOfPoints << "\n"
+              << "residual layer: "
+              << (r.header.residualLayer.empty() ? std::string("none")
+                                                 : std::to_string(r.header.residualLayer.size()) + " bytes")
+              << "\n"
               << "step: " << r.header.quantizationStep << "\n"
               << "scale: " << r.header.scale[0] << " " << r.header.scale[1] << " " << r.header.scale[2] << "\n"
               << "PSNR: " << r.psnr << " dB\n"
@@ -85,6 +89,8 @@ const RegisterCommand compress{
                         ->check(CLI::NonNegativeNumber)
                         ->capture_default_str();
       bpv->excludes(psnr)->excludes(points);
+      command.add_flag(
+        "!--no-residual-layer", e.residualLayer, "With --bpv, points only: no JPEG 2000 residual layer is tried");
       psnr->excludes(points);
       command.add_option("--step",
                          e.quantizationStep,

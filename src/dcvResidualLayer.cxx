@@ -1,0 +1,391 @@
+/*=========================================================================
+ *
+ *  Copyright NumFOCUS
+ *
+ *  Licensed under the Apache License, Version 2.0 (the "License");
+ *  you may not use this file except in compliance with the License.
+ *  You may obtain a copy of the License at
+ *
+ *         http://www.apache.org/licenses/LICENSE-2.0.txt
+ *
+ *  Unless required by applicable law or agreed to in writing, software
+ *  distributed under the License is distributed on an "AS IS" BASIS,
+ *  WITHOUT WARRANTIES OR CONDITIONS OF ANY KIND, either express or implied.
+ *  See the License for the specific language governing permissions and
+ *  limitations under the License.
+ *
+ *=========================================================================*/
+#include "dcvResidualLayer.h"
+#include "dcvFileFormat.h"
+
+// The path names the system OpenJPEG 2.5: ITK ships an older, mangled openjpeg.h on its include path.
+#include <openjpeg-2.5/openjpeg.h>
+
+#include <algorithm>
+#include <cmath>
+#include <cstring>
+#include <memory>
+#include <stdexcept>
+#include <thread>
+
+namespace dcv
+{
+namespace
+{
+/** A codestream in memory, read or written by OpenJPEG through its stream callbacks. */
+struct Buffer
+{
+  std::vector<uint8_t> bytes;
+  std::size_t          position{ 0 };
+};
+
+OPJ_SIZE_T
+Read(void * out, OPJ_SIZE_T n, void * user)
+{
+  auto &            b = *static_cast<Buffer *>(user);
+  const std::size_t count = std::min<std::size_t>(n, b.bytes.size() - b.position);
+  if (count == 0)
+    return OPJ_SIZE_T(-1); // end of stream, as OpenJPEG's file stream says it
+  std::memcpy(out, b.bytes.data() + b.position, count);
+  b.position += count;
+  return count;
+}
+
+OPJ_SIZE_T
+Write(void * in, OPJ_SIZE_T n, void * user)
+{
+  auto & b = *static_cast<Buffer *>(user);
+  if (b.position + n > b.bytes.size())
+    b.bytes.resize(b.position + n);
+  std::memcpy(b.bytes.data() + b.position, in, n);
+  b.position += n;
+  return n;
+}
+
+OPJ_OFF_T
+Skip(OPJ_OFF_T n, void * user)
+{
+  auto &        b = *static_cast<Buffer *>(user);
+  const int64_t target = std::clamp<int64_t>(int64_t(b.position) + n, 0, int64_t(b.bytes.size()));
+  const int64_t moved = target - int64_t(b.position);
+  b.position = std::size_t(target);
+  return moved;
+}
+
+OPJ_BOOL
+Seek(OPJ_OFF_T n, void * user)
+{
+  auto & b = *static_cast<Buffer *>(user);
+  if (n < 0 || uint64_t(n) > b.bytes.size())
+    return OPJ_FALSE;
+  b.position = std::size_t(n);
+  return OPJ_TRUE;
+}
+
+struct StreamDeleter
+{
+  void
+  operator()(opj_stream_t * s) const
+  {
+    opj_stream_destroy(s);
+  }
+};
+struct CodecDeleter
+{
+  void
+  operator()(opj_codec_t * c) const
+  {
+    opj_destroy_codec(c);
+  }
+};
+struct ImageDeleter
+{
+  void
+  operator()(opj_image_t * i) const
+  {
+    opj_image_destroy(i);
+  }
+};
+using Stream = std::unique_ptr<opj_stream_t, StreamDeleter>;
+using Codec = std::unique_ptr<opj_codec_t, CodecDeleter>;
+using Image = std::unique_ptr<opj_image_t, ImageDeleter>;
+
+Stream
+MakeStream(Buffer & buffer, bool input)
+{
+  Stream s(opj_stream_create(OPJ_J2K_STREAM_CHUNK_SIZE, input ? OPJ_TRUE : OPJ_FALSE));
+  if (!s)
+    throw std::bad_alloc();
+  opj_stream_set_user_data(s.get(), &buffer, nullptr);
+  if (input)
+  {
+    opj_stream_set_user_data_length(s.get(), buffer.bytes.size());
+    opj_stream_set_read_function(s.get(), Read);
+  }
+  else
+  {
+    opj_stream_set_write_function(s.get(), Write);
+  }
+  opj_stream_set_skip_function(s.get(), Skip);
+  opj_stream_set_seek_function(s.get(), Seek);
+  return s;
+}
+
+/** OpenJPEG's messages: errors are kept for the exception, the rest is dropped. */
+void
+KeepError(const char * message, void * user)
+{
+  auto & s = *static_cast<std::string *>(user);
+  if (s.empty())
+  {
+    s = message;
+    while (!s.empty() && (s.back() == '\n' || s.back() == ' '))
+      s.pop_back();
+  }
+}
+void
+Drop(const char *, void *)
+{}
+
+void
+Quiet(opj_codec_t * codec, std::string & error)
+{
+  opj_set_error_handler(codec, KeepError, &error);
+  opj_set_warning_handler(codec, Drop, nullptr);
+  opj_set_info_handler(codec, Drop, nullptr);
+}
+
+int
+Threads()
+{
+  return int(std::max(1u, std::thread::hardware_concurrency()));
+}
+
+/** One encode of a mosaic at a target size; the codestream (empty when OpenJPEG fails). A fresh image
+ * each time: OpenJPEG's encoder may take over the image's sample buffer. */
+std::vector<uint8_t>
+EncodeOnce(const std::vector<int32_t> & mosaic, int64_t width, int64_t height, int precision, int resolutions,
+           double ratio, Wavelet wavelet)
+{
+  opj_image_cmptparm_t component{};
+  component.dx = component.dy = 1;
+  component.w = OPJ_UINT32(width);
+  component.h = OPJ_UINT32(height);
+  component.prec = OPJ_UINT32(precision);
+  component.sgnd = 1;
+  Image image(opj_image_create(1, &component, OPJ_CLRSPC_GRAY));
+  if (!image)
+    throw std::bad_alloc();
+  image->x0 = image->y0 = 0;
+  image->x1 = OPJ_UINT32(width);
+  image->y1 = OPJ_UINT32(height);
+  std::copy(mosaic.begin(), mosaic.end(), image->comps[0].data);
+
+  opj_cparameters_t p;
+  opj_set_default_encoder_parameters(&p);
+  p.tcp_numlayers = 1;
+  p.tcp_rates[0] = float(ratio);
+  p.cp_disto_alloc = 1;
+  p.irreversible = wavelet == Wavelet::Irreversible97 ? 1 : 0;
+  p.numresolution = resolutions;
+  Codec       codec(opj_create_compress(OPJ_CODEC_J2K));
+  std::string error;
+  Quiet(codec.get(), error);
+  Buffer buffer;
+  Stream stream = MakeStream(buffer, false);
+  // Code-blocks are coded independently and the rate allocation follows, so the codestream does not
+  // depend on the number of threads.
+  if (!opj_setup_encoder(codec.get(), &p, image.get()) || !opj_codec_set_threads(codec.get(), Threads()) ||
+      !opj_start_compress(codec.get(), image.get(), stream.get()) || !opj_encode(codec.get(), stream.get()) ||
+      !opj_end_compress(codec.get(), stream.get()))
+  {
+    return {};
+  }
+  return std::move(buffer.bytes);
+}
+} // namespace
+
+int32_t
+MosaicColumns(const GridSize & grid)
+{
+  int32_t best = 1;
+  double  bestShape = 0.0;
+  int64_t bestEmpty = 0;
+  for (int32_t cols = 1; cols <= grid.z; ++cols)
+  {
+    const int64_t rows = (grid.z + cols - 1) / cols;
+    const double  w = double(cols) * grid.x, h = double(rows) * grid.y;
+    const double  shape = std::max(w, h) / std::min(w, h);
+    const int64_t empty = rows * cols - grid.z;
+    if (cols == 1 || shape < bestShape || (shape == bestShape && empty < bestEmpty))
+    {
+      best = cols;
+      bestShape = shape;
+      bestEmpty = empty;
+    }
+  }
+  return best;
+}
+
+std::vector<uint8_t>
+EncodeResidualLayer(const std::vector<int32_t> & samples, const GridSize & grid, std::size_t maximumBytes,
+                    Wavelet wavelet)
+{
+  if (samples.size() != grid.NumberOfVoxels())
+    throw std::invalid_argument("EncodeResidualLayer: one sample per voxel");
+  const int32_t cols = MosaicColumns(grid);
+  const int32_t rows = (grid.z + cols - 1) / cols;
+  const int64_t width = int64_t(cols) * grid.x, height = int64_t(rows) * grid.y;
+  if (width > 0x7fffffff || height > 0x7fffffff)
+    return {};
+  int32_t lowest = 0, highest = 0;
+  for (int32_t s : samples)
+  {
+    if (s <= -32768 || s >= 32768)
+      throw std::invalid_argument("EncodeResidualLayer: samples must be within +-32767");
+    lowest = std::min(lowest, s);
+    highest = std::max(highest, s);
+  }
+  // The fewest bits that hold the samples (two's complement): more bit planes measured worse at the
+  // same size.
+  int precision = 2;
+  while (lowest < -(1 << (precision - 1)) || highest > (1 << (precision - 1)) - 1)
+    ++precision;
+
+  // Empty tiles of the last row hold the most frequent sample (air in a CT): no edge against the
+  // background of the slices beside them (measured: +0.15 dB on ct-avm-4mm over a fill with 0).
+  std::vector<uint32_t> histogram(65536, 0);
+  for (int32_t s : samples)
+    ++histogram[std::size_t(s + 32768)];
+  const int32_t        fill = int32_t(std::max_element(histogram.begin(), histogram.end()) - histogram.begin()) - 32768;
+  std::vector<int32_t> mosaic(std::size_t(width * height), fill);
+  for (int32_t z = 0; z < grid.z; ++z)
+  {
+    const int64_t x0 = int64_t(z % cols) * grid.x, y0 = int64_t(z / cols) * grid.y;
+    for (int32_t y = 0; y < grid.y; ++y)
+    {
+      std::copy_n(samples.data() + grid.Offset(0, y, z), grid.x, mosaic.data() + (y0 + y) * width + x0);
+    }
+  }
+  // Every resolution level needs a sample, as OpenJPEG asks; six levels otherwise.
+  const int resolutions =
+    std::max(1, std::min(6, int(std::floor(std::log2(double(std::max<int64_t>(1, std::min(width, height)))))) + 1));
+  const double raw = double(width) * double(height) * precision / 8.0;
+  // OpenJPEG's rate allocation lands within a fraction of a percent under its target; the rare
+  // overshoot is taken back in proportion.
+  double target = double(maximumBytes);
+  for (int attempt = 0; attempt < 4 && target >= 16.0; ++attempt)
+  {
+    std::vector<uint8_t> codestream =
+      EncodeOnce(mosaic, width, height, precision, resolutions, target < raw ? raw / target : 0.0, wavelet);
+    if (codestream.empty())
+      return {};
+    if (codestream.size() <= maximumBytes)
+      return codestream;
+    target *= 0.995 * double(maximumBytes) / double(codestream.size());
+  }
+  return {};
+}
+
+std::vector<int32_t>
+DecodeResidualLayer(const std::vector<uint8_t> & codestream, const GridSize & grid, const std::string & name)
+{
+  Buffer      buffer{ codestream, 0 };
+  Stream      stream = MakeStream(buffer, true);
+  Codec       codec(opj_create_decompress(OPJ_CODEC_J2K));
+  std::string error;
+  Quiet(codec.get(), error);
+  opj_dparameters_t p;
+  opj_set_default_decoder_parameters(&p);
+  auto fail = [&](const std::string & what) {
+    return FormatError(name + ": damaged residual layer (" + what + (error.empty() ? "" : ": " + error) + ")");
+  };
+  opj_image_t * header = nullptr;
+  if (!opj_setup_decoder(codec.get(), &p) || !opj_codec_set_threads(codec.get(), Threads()) ||
+      !opj_read_header(stream.get(), codec.get(), &header))
+  {
+    opj_image_destroy(header);
+    throw fail("unreadable JPEG 2000 header");
+  }
+  Image image(header);
+  // The mosaic must be the grid's slices, checked before anything is decoded from the codestream.
+  const int64_t width = int64_t(image->x1) - image->x0, height = int64_t(image->y1) - image->y0;
+  const int64_t cols = width / grid.x, rows = height / grid.y;
+  if (image->numcomps != 1 || image->x0 != 0 || image->y0 != 0 || width % grid.x != 0 || height % grid.y != 0 ||
+      cols < 1 || rows != (grid.z + cols - 1) / cols || image->comps[0].dx != 1 || image->comps[0].dy != 1 ||
+      image->comps[0].prec > 24)
+  {
+    throw fail("not a mosaic of " + std::to_string(grid.z) + " slices of " + std::to_string(grid.x) + "x" +
+               std::to_string(grid.y) + " samples");
+  }
+  if (!opj_decode(codec.get(), stream.get(), image.get()) || !opj_end_decompress(codec.get(), stream.get()))
+  {
+    throw fail("JPEG 2000 decoding failed");
+  }
+  const opj_image_comp_t & c = image->comps[0];
+  if (c.data == nullptr || int64_t(c.w) != width || int64_t(c.h) != height)
+  {
+    throw fail("JPEG 2000 decoding gave no samples");
+  }
+  std::vector<int32_t> samples(grid.NumberOfVoxels());
+  for (int32_t z = 0; z < grid.z; ++z)
+  {
+    const int64_t x0 = int64_t(z % cols) * grid.x, y0 = int64_t(z / cols) * grid.y;
+    for (int32_t y = 0; y < grid.y; ++y)
+    {
+      std::copy_n(c.data + (y0 + y) * width + x0, grid.x, samples.data() + grid.Offset(0, y, z));
+    }
+  }
+  return samples;
+}
+
+double
+ResidualStep(double peak, bool integer)
+{
+  const double step = peak / 16384.0;
+  return integer ? std::max(1.0, std::ceil(step)) : step;
+}
+
+ResidualChoice
+ChooseResidualLayer(const float * voxels, PixelType type, const Approximation & spline, double step,
+                    std::size_t maximumBytes, const std::vector<Wavelet> & wavelets)
+{
+  ResidualChoice best;
+  best.step = step;
+  VisitPixelType(type, [&](auto pixel) {
+    using T = decltype(pixel);
+    const uint64_t n = spline.grid.NumberOfVoxels();
+    std::vector<T> decoded(n);
+    Approximation  bare = spline;
+    bare.residual = {};
+    Rasterize(bare, decoded.data());
+    std::vector<int32_t> samples(n);
+    for (uint64_t i = 0; i < n; ++i)
+    {
+      const double r = std::round((double(voxels[i]) - double(decoded[i])) / step);
+      samples[i] = int32_t(std::clamp(r, -32767.0, 32767.0));
+    }
+    for (Wavelet wavelet : wavelets)
+    {
+      std::vector<uint8_t> codestream = EncodeResidualLayer(samples, spline.grid, maximumBytes, wavelet);
+      if (codestream.empty())
+        continue;
+      Residual residual{ step, DecodeResidualLayer(codestream, spline.grid, "residual layer") };
+      double   error = 0.0;
+      for (uint64_t i = 0; i < n; ++i)
+      {
+        const double e = double(voxels[i]) - double(AddResidual(decoded[i], residual, i));
+        error += e * e;
+      }
+      if (best.codestream.empty() || error < best.squaredError)
+      {
+        best.codestream = std::move(codestream);
+        best.samples = std::move(residual.samples);
+        best.squaredError = error;
+      }
+    }
+  });
+  return best;
+}
+
+} // namespace dcv

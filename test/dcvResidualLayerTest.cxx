@@ -1,0 +1,241 @@
+/*=========================================================================
+ *
+ *  Copyright NumFOCUS
+ *
+ *  Licensed under the Apache License, Version 2.0 (the "License");
+ *  you may not use this file except in compliance with the License.
+ *  You may obtain a copy of the License at
+ *
+ *         http://www.apache.org/licenses/LICENSE-2.0.txt
+ *
+ *  Unless required by applicable law or agreed to in writing, software
+ *  distributed under the License is distributed on an "AS IS" BASIS,
+ *  WITHOUT WARRANTIES OR CONDITIONS OF ANY KIND, either express or implied.
+ *  See the License for the specific language governing permissions and
+ *  limitations under the License.
+ *
+ *=========================================================================*/
+// The residual layer: the JPEG 2000 mosaic codes and decodes within its budget (exactly with 5/3 and
+// room enough), damaged layers are refused by name, the container carries it, and the encoder keeps
+// it only where it decodes closer than the points alone, with the decoder giving what it reported.
+#include "dcvCodec.h"
+#include "dcvResidualLayer.h"
+#include "dcvTestUtilities.h"
+#include "itkDCVEncoder.h"
+#include "itkDCVImageIO.h"
+#include "itkImageFileReader.h"
+
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <iostream>
+#include <random>
+
+namespace
+{
+using dcv::GridSize;
+
+std::vector<int32_t>
+Samples(const GridSize & g, int amplitude, unsigned seed)
+{
+  std::mt19937         random(seed);
+  std::vector<int32_t> s(g.NumberOfVoxels());
+  for (int32_t z = 0; z < g.z; ++z)
+    for (int32_t y = 0; y < g.y; ++y)
+      for (int32_t x = 0; x < g.x; ++x)
+        s[g.Offset(x, y, z)] =
+          int32_t(std::lround(amplitude * std::sin(0.3 * x + z) * std::cos(0.2 * y))) + int32_t(random() % 7) - 3;
+  return s;
+}
+
+double
+SquaredError(const std::vector<int32_t> & a, const std::vector<int32_t> & b)
+{
+  double e = 0.0;
+  for (std::size_t i = 0; i < a.size(); ++i)
+    e += double(a[i] - b[i]) * double(a[i] - b[i]);
+  return e;
+}
+
+/** A volume whose slices have little in common (thick slices): texture a spline cannot follow. */
+itk::Image<int16_t, 3>::Pointer
+ThickSlices(const GridSize & g)
+{
+  auto image = itk::Image<int16_t, 3>::New();
+  image->SetRegions(itk::Size<3>{ { std::size_t(g.x), std::size_t(g.y), std::size_t(g.z) } });
+  image->Allocate();
+  int16_t * v = image->GetBufferPointer();
+  for (int32_t z = 0; z < g.z; ++z)
+    for (int32_t y = 0; y < g.y; ++y)
+      for (int32_t x = 0; x < g.x; ++x)
+        v[g.Offset(x, y, z)] = int16_t(std::lround(900.0 * std::sin(0.15 * x + 1.7 * z) * std::cos(0.1 * y + z)));
+  itk::Image<int16_t, 3>::SpacingType spacing;
+  spacing[0] = spacing[1] = 0.5;
+  spacing[2] = 5.0;
+  image->SetSpacing(spacing);
+  return image;
+}
+} // namespace
+
+TEST(ResidualLayer, MosaicIsNearSquareWithFewEmptyTiles)
+{
+  EXPECT_EQ(dcv::MosaicColumns({ 256, 242, 38 }), 6); // 6 x 7 tiles, as the benchmark's j2k-mosaic
+  EXPECT_EQ(dcv::MosaicColumns({ 64, 64, 1 }), 1);
+  EXPECT_EQ(dcv::MosaicColumns({ 10, 10, 16 }), 4);
+  EXPECT_EQ(dcv::MosaicColumns({ 100, 10, 4 }), 1); // wide slices stack in one column
+}
+
+TEST(ResidualLayer, ReversibleWithRoomIsExact)
+{
+  for (const GridSize g : { GridSize{ 20, 12, 7 }, GridSize{ 9, 33, 2 }, GridSize{ 2, 2, 2 } })
+  {
+    const auto samples = Samples(g, 300, 1);
+    const auto codestream = dcv::EncodeResidualLayer(samples, g, 1 << 20, dcv::Wavelet::Reversible53);
+    ASSERT_FALSE(codestream.empty());
+    EXPECT_EQ(dcv::DecodeResidualLayer(codestream, g, "x"), samples) << g.x << "x" << g.y << "x" << g.z;
+  }
+}
+
+TEST(ResidualLayer, StaysWithinItsBudgetAndImprovesWithIt)
+{
+  const GridSize g{ 48, 40, 9 };
+  const auto     samples = Samples(g, 2000, 2);
+  for (dcv::Wavelet w : { dcv::Wavelet::Irreversible97, dcv::Wavelet::Reversible53 })
+  {
+    double previous = std::numeric_limits<double>::infinity();
+    for (std::size_t budget : { 400, 1600, 6400 })
+    {
+      const auto codestream = dcv::EncodeResidualLayer(samples, g, budget, w);
+      ASSERT_FALSE(codestream.empty()) << budget;
+      EXPECT_LE(codestream.size(), budget);
+      EXPECT_GE(codestream.size(), budget * 9 / 10) << "the budget is not used";
+      const double error = SquaredError(samples, dcv::DecodeResidualLayer(codestream, g, "x"));
+      EXPECT_LT(error, previous) << budget;
+      previous = error;
+    }
+    // Deterministic: the same bytes again (OpenJPEG runs threaded).
+    EXPECT_EQ(dcv::EncodeResidualLayer(samples, g, 1600, w), dcv::EncodeResidualLayer(samples, g, 1600, w));
+  }
+  EXPECT_TRUE(dcv::EncodeResidualLayer(samples, g, 10, dcv::Wavelet::Irreversible97).empty());
+  EXPECT_THROW(dcv::EncodeResidualLayer(std::vector<int32_t>(10, 0), g, 100, dcv::Wavelet::Reversible53),
+               std::invalid_argument);
+}
+
+TEST(ResidualLayer, DamagedLayersAreRefusedByName)
+{
+  const GridSize g{ 24, 20, 6 };
+  const auto     codestream = dcv::EncodeResidualLayer(Samples(g, 100, 3), g, 800, dcv::Wavelet::Irreversible97);
+  ASSERT_FALSE(codestream.empty());
+  auto expectRefused = [&](const std::vector<uint8_t> & bytes, const GridSize & grid, const std::string & why) {
+    try
+    {
+      dcv::DecodeResidualLayer(bytes, grid, "'f.dcv'");
+      ADD_FAILURE() << "accepted: " << why;
+    }
+    catch (const dcv::FormatError & e)
+    {
+      EXPECT_NE(std::string(e.what()).find("'f.dcv': damaged residual layer"), std::string::npos) << e.what();
+      EXPECT_NE(std::string(e.what()).find(why), std::string::npos) << e.what();
+    }
+  };
+  expectRefused(std::vector<uint8_t>(codestream.begin(), codestream.begin() + 20), g, "");
+  expectRefused(std::vector<uint8_t>(64, 0x5a), g, "unreadable");
+  expectRefused(codestream, { 24, 20, 13 }, "not a mosaic of 13 slices");
+  expectRefused(codestream, { 12, 20, 6 }, "not a mosaic");
+  // Any damage past the header decodes to something or is refused, never a crash.
+  std::mt19937 random(5);
+  for (int i = 0; i < 200; ++i)
+  {
+    auto damaged = codestream;
+    damaged[std::size_t(random() % damaged.size())] ^= uint8_t(1 + random() % 255);
+    try
+    {
+      EXPECT_EQ(dcv::DecodeResidualLayer(damaged, g, "x").size(), g.NumberOfVoxels());
+    }
+    catch (const dcv::FormatError &)
+    {}
+  }
+}
+
+TEST(ResidualLayer, ContainerCarriesIt)
+{
+  dcv::FileHeader h;
+  h.size = { 4, 3, 2 };
+  h.numberOfPoints = 8;
+  h.residualStep = 2.0;
+  h.residualLayer = { 1, 2, 3, 4, 5 };
+  h.metadata = { { "k", "v" } };
+  const auto           bytes = dcv::SerializeFile(h, { 7, 7 });
+  dcv::FileHeader      back;
+  std::vector<uint8_t> payload;
+  dcv::ParseFile(bytes, "x", back, payload);
+  EXPECT_EQ(back.residualStep, 2.0);
+  EXPECT_EQ(back.residualLayer, h.residualLayer);
+  EXPECT_EQ(back.metadata, h.metadata);
+  EXPECT_EQ(payload, (std::vector<uint8_t>{ 7, 7 }));
+  h.residualStep = 0.0;
+  EXPECT_EQ(dcv::SerializeFile(h, { 7, 7 }).size() + 8 + 4 + 5, bytes.size());
+  h.residualStep = -1.0;
+  EXPECT_THROW(dcv::SerializeFile(h, { 7, 7 }), std::invalid_argument);
+}
+
+TEST(ResidualLayer, EncoderKeepsItOnlyWhereItDecodesCloser)
+{
+  const GridSize g{ 64, 60, 8 };
+  const auto     image = ThickSlices(g);
+  for (double bpv : { 0.25, 1.0 })
+  {
+    dcv::EncoderOptions options;
+    options.bitsPerVoxel = bpv;
+    const auto layered = itk::DCVEncode(image.GetPointer(), options);
+    options.residualLayer = false;
+    const auto pointsOnly = itk::DCVEncode(image.GetPointer(), options);
+    EXPECT_TRUE(pointsOnly.header.residualLayer.empty());
+    EXPECT_GE(layered.psnr, pointsOnly.psnr) << bpv;
+    // Texture across thick slices: the transform layer wins here.
+    EXPECT_FALSE(layered.header.residualLayer.empty()) << bpv;
+    EXPECT_GT(layered.psnr, pointsOnly.psnr + 1.0) << bpv;
+    std::cout << bpv << " bpv: " << layered.psnr << " dB with the residual layer, " << pointsOnly.psnr
+              << " dB points only" << std::endl;
+    EXPECT_LE(layered.bytes.size(), std::size_t(bpv * g.NumberOfVoxels() / 8));
+
+    // The decoder (the library's and ITK's reader) gives exactly what the encoder reported.
+    dcv::test::TemporaryDirectory dir;
+    const std::string             path = dir / "layered.dcv";
+    dcv::WriteFileAtomically(path, layered.bytes);
+    std::vector<int16_t> decoded(g.NumberOfVoxels());
+    dcv::Rasterize(dcv::Decode(dcv::ReadCompressedFile(path)), decoded.data());
+    const double peak = dcv::PSNRPeak(image->GetBufferPointer(), decoded.size());
+    EXPECT_EQ(
+      dcv::PSNR(dcv::SquaredError(image->GetBufferPointer(), decoded.data(), decoded.size()), decoded.size(), peak),
+      layered.psnr);
+    auto reader = itk::ImageFileReader<itk::Image<int16_t, 3>>::New();
+    reader->SetFileName(path);
+    reader->Update();
+    EXPECT_TRUE(std::equal(decoded.begin(), decoded.end(), reader->GetOutput()->GetBufferPointer()));
+  }
+}
+
+TEST(ResidualLayer, RegionDecodeAddsTheLayer)
+{
+  const GridSize      g{ 40, 36, 6 };
+  const auto          image = ThickSlices(g);
+  dcv::EncoderOptions options;
+  options.bitsPerVoxel = 1.0;
+  const auto r = itk::DCVEncode(image.GetPointer(), options);
+  ASSERT_FALSE(r.header.residualLayer.empty());
+  dcv::CompressedFile file;
+  file.name = "x";
+  dcv::ParseFile(r.bytes, file.name, file.header, file.payload);
+  const dcv::Approximation a = dcv::Decode(file);
+  std::vector<int16_t>     whole(g.NumberOfVoxels());
+  dcv::Rasterize(a, whole.data());
+  const dcv::GridPoint first{ 3, 5, 1 }, last{ 20, 17, 4 };
+  std::vector<int16_t> box(18 * 13 * 4);
+  dcv::RasterizeBox(a, first, last, box.data());
+  std::size_t i = 0;
+  for (int32_t z = first[2]; z <= last[2]; ++z)
+    for (int32_t y = first[1]; y <= last[1]; ++y)
+      for (int32_t x = first[0]; x <= last[0]; ++x)
+        EXPECT_EQ(box[i++], whole[g.Offset(x, y, z)]);
+}
