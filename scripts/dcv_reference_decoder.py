@@ -65,6 +65,7 @@ MODES = {0: "silva", 1: "dec", 2: "dec+com", 3: "best"}
 FLAG_DIRECTION = 1
 FLAG_METADATA = 2
 FLAG_SCALE = 4
+FLAG_RESIDUAL = 8
 IDENTITY = (1.0, 0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 1.0)
 
 
@@ -108,7 +109,7 @@ def parse_container(data):
     pixel_type, flags, mode = f.unpack("3B", "header")
     if pixel_type not in PIXEL_TYPES:
         raise DamagedFile("unknown pixel type code %d" % pixel_type)
-    if flags & ~(FLAG_DIRECTION | FLAG_METADATA | FLAG_SCALE):
+    if flags & ~(FLAG_DIRECTION | FLAG_METADATA | FLAG_SCALE | FLAG_RESIDUAL):
         raise DamagedFile("unknown header flags %d" % flags)
     size = f.unpack("3H", "header")
     if min(size) < 2:
@@ -132,6 +133,16 @@ def parse_container(data):
         raise DamagedFile("truncated (the payload is %d bytes, %d remain)" % (length, f.left()))
     payload = f.take(length, "payload")
 
+    residual_step, residual_layer = 0.0, b""
+    if flags & FLAG_RESIDUAL:
+        (residual_step,) = f.unpack("d", "residual layer")
+        if not (math.isfinite(residual_step) and residual_step > 0.0):
+            raise DamagedFile("invalid residual step")
+        (residual_length,) = f.unpack("I", "residual layer")
+        if residual_length == 0 or residual_length > f.left():
+            raise DamagedFile("truncated (the residual layer is %d bytes, %d remain)" % (residual_length, f.left()))
+        residual_layer = f.take(residual_length, "residual layer")
+
     metadata = []
     if flags & FLAG_METADATA:
         count, block_size = f.unpack("2I", "metadata")
@@ -148,7 +159,8 @@ def parse_container(data):
         raise DamagedFile("%d unexpected bytes before the checksum" % f.left())
 
     return dict(version=VERSION, pixel_type=pixel_type, flags=flags, mode=mode, size=size, spacing=spacing,
-                origin=origin, direction=direction, scale=scale, q0=q0, q=q, n=n, payload=payload, metadata=metadata)
+                origin=origin, direction=direction, scale=scale, q0=q0, q=q, n=n, payload=payload, metadata=metadata,
+                residual_step=residual_step, residual_layer=residual_layer)
 
 
 # =========================================================================
@@ -434,6 +446,50 @@ def read_neighbours(path, n):
 # Command line
 # =========================================================================
 
+def decode_residual_layer(h):
+    """Section "Residual layer": the samples r in grid order (x fastest), decoded by OpenJPEG's
+    opj_decompress (libopenjp2-tools) from the codestream, then taken out of the slice mosaic."""
+    import os
+    import shutil
+    import subprocess
+    import tempfile
+    if shutil.which("opj_decompress") is None:
+        raise DamagedFile("opj_decompress (libopenjp2-tools) is needed to decode the residual layer")
+    sx, sy, sz = h["size"]
+    work = tempfile.mkdtemp(prefix="dcv-residual-")
+    try:
+        j2k, pgx = os.path.join(work, "layer.j2k"), os.path.join(work, "layer.pgx")
+        with open(j2k, "wb") as out:
+            out.write(h["residual_layer"])
+        run = subprocess.run(["opj_decompress", "-i", j2k, "-o", pgx], capture_output=True)
+        produced = [n for n in os.listdir(work) if n.endswith(".pgx")]
+        if run.returncode != 0 or len(produced) != 1:
+            raise DamagedFile("damaged residual layer (opj_decompress failed)")
+        with open(os.path.join(work, produced[0]), "rb") as f:
+            data = f.read()
+    finally:
+        shutil.rmtree(work, ignore_errors=True)
+    # PGX: "PG ML|LM +|- depth width height\n", then the samples, 1, 2 or 4 bytes each.
+    end = data.index(b"\n")
+    fields = data[:end].decode("ascii").split()
+    endian = ">" if fields[1] == "ML" else "<"
+    signed, depth = fields[2] == "-", int(fields[3])
+    width, height = int(fields[4]), int(fields[5])
+    if width % sx or height % sy or height // sy != -(-sz // (width // sx)):
+        raise DamagedFile("damaged residual layer (not a mosaic of %d slices of %dx%d samples)" % (sz, sx, sy))
+    nbytes = 1 if depth <= 8 else 2 if depth <= 16 else 4
+    code = {1: "b", 2: "h", 4: "i"}[nbytes]
+    mosaic = struct.unpack_from(endian + str(width * height) + (code if signed else code.upper()), data, end + 1)
+    columns = width // sx
+    samples = []
+    for z in range(sz):
+        x0, y0 = (z % columns) * sx, (z // columns) * sy
+        for y in range(sy):
+            row = (y0 + y) * width + x0
+            samples.extend(mosaic[row:row + sx])
+    return samples
+
+
 def print_header(h):
     print("version", h["version"])
     print("pixel_type", h["pixel_type"], PIXEL_TYPES[h["pixel_type"]])
@@ -448,6 +504,9 @@ def print_header(h):
     print("quantization_step", repr(h["q"]))
     print("points", h["n"])
     print("payload_bytes", len(h["payload"]))
+    if h["flags"] & FLAG_RESIDUAL:
+        print("residual_step", repr(h["residual_step"]))
+        print("residual_bytes", len(h["residual_layer"]))
     for key, value in h["metadata"]:
         print("metadata", json.dumps(key, ensure_ascii=False), json.dumps(value, ensure_ascii=False))
 
@@ -477,10 +536,14 @@ def main():
                 print("%s: %s" % (args.neighbours, e.strerror if isinstance(e, OSError) else e), file=sys.stderr)
                 return 2
             values = decode_values(d, neighbours, h["q0"], h["q"])
+        residual = decode_residual_layer(h) if h["flags"] & FLAG_RESIDUAL else None
     except DamagedFile as e:
         print("%s: %s" % (args.file, e), file=sys.stderr)
         return 1
     print_header(h)
+    if residual is not None:
+        # CRC-32 of the samples as 32-bit little-endian integers: one line for the whole layer.
+        print("residual_crc", zlib.crc32(struct.pack("<%di" % len(residual), *residual)) & 0xFFFFFFFF)
     if values is None:
         sys.stdout.writelines("%d %d %d\n" % p for p in points)
     else:

@@ -19,11 +19,14 @@
 // alone, must read every file the C++ encoder writes into exactly what the C++ decoder gives (header fields,
 // points in decoding order, values given the neighbours), and refuse the damaged ones.
 #include "dcvCodec.h"
+#include "dcvEncoder.h"
+#include "dcvResidualLayer.h"
 #include "dcvFileFormat.h"
 #include "dcvPhantom.h"
 #include "dcvRefinementEngine.h"
 #include "dcvTestUtilities.h"
 
+#include <cmath>
 #include <cstdio>
 #include <cstdlib>
 #include <fstream>
@@ -33,6 +36,7 @@
 #include <sstream>
 #include <sys/wait.h>
 #include <unistd.h>
+#include <zlib.h>
 
 namespace
 {
@@ -268,7 +272,8 @@ protected:
     };
     const bool   direction = h.direction != std::array<double, 9>{ 1, 0, 0, 0, 1, 0, 0, 0, 1 };
     const bool   scaled = h.scale != GridScale{ { 1, 1, 1 } };
-    const int    flags = (direction ? 1 : 0) | (h.metadata.empty() ? 0 : 2) | (scaled ? 4 : 0);
+    const bool   residual = h.residualStep > 0.0;
+    const int    flags = (direction ? 1 : 0) | (h.metadata.empty() ? 0 : 2) | (scaled ? 4 : 0) | (residual ? 8 : 0);
     const Tokens type = field("pixel_type");
     const Tokens mode = field("mode");
     EXPECT_EQ(field("version"), Tokens{ std::to_string(FileHeader::Version) });
@@ -285,6 +290,17 @@ protected:
     EXPECT_EQ(numbers(field("quantization_step")), std::vector<double>{ h.quantizationStep });
     EXPECT_EQ(field("points"), Tokens{ std::to_string(h.numberOfPoints) });
     EXPECT_EQ(field("payload_bytes"), Tokens{ std::to_string(d.payload.size()) });
+    if (residual)
+    {
+      EXPECT_EQ(numbers(field("residual_step")), std::vector<double>{ h.residualStep });
+      EXPECT_EQ(field("residual_bytes"), Tokens{ std::to_string(h.residualLayer.size()) });
+      const std::vector<int32_t> samples = DecodeResidualLayer(h.residualLayer, h.size, path);
+      std::vector<uint8_t>       le;
+      for (int32_t v : samples)
+        for (int b = 0; b < 4; ++b)
+          le.push_back(uint8_t(uint32_t(v) >> (8 * b)));
+      EXPECT_EQ(field("residual_crc"), Tokens{ std::to_string(crc32(0L, le.data(), uInt(le.size()))) });
+    }
     std::vector<std::string> metadata;
     for (const auto & kv : h.metadata)
       metadata.push_back(Json(kv.first) + " " + Json(kv.second));
@@ -421,6 +437,34 @@ TEST_F(FormatSpecification, RealVolumeThroughTheCommandLine)
                               Quote(test::DataFile("headsq-ct.nrrd")) + " " + Quote(file) + " 2>&1";
   ASSERT_EQ(std::system(command.c_str()), 0) << command;
   ExpectAgreement(file);
+}
+
+TEST_F(FormatSpecification, ResidualLayer)
+{
+  // Slices with little in common (thick slices): the encoder keeps a residual layer, with both wavelets.
+  const GridSize     grid{ 40, 36, 6 };
+  std::vector<float> voxels(grid.NumberOfVoxels());
+  for (int32_t z = 0; z < grid.z; ++z)
+    for (int32_t y = 0; y < grid.y; ++y)
+      for (int32_t x = 0; x < grid.x; ++x)
+        voxels[grid.Offset(x, y, z)] = float(std::lround(900.0 * std::sin(0.15 * x + 1.7 * z) * std::cos(0.1 * y + z)));
+  EncoderInput input;
+  input.voxels = voxels.data();
+  input.header.pixelType = PixelType::Int16;
+  input.header.size = grid;
+  input.header.spacing = { 0.5, 0.5, 5.0 };
+  std::vector<float> smoothed = voxels;
+  input.smoothed = smoothed.data();
+  for (double bpv : { 1.0, 4.0 })
+  {
+    EncoderOptions options;
+    options.bitsPerVoxel = bpv;
+    const EncoderResult r = Encode(input, options);
+    ASSERT_GT(r.header.residualStep, 0.0) << bpv;
+    const std::string path = Path("residual.dcv");
+    WriteFileAtomically(path, r.bytes);
+    ExpectAgreement(path);
+  }
 }
 
 TEST_F(FormatSpecification, DamagedFilesAreRefused)
