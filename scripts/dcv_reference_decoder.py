@@ -446,6 +446,20 @@ def read_neighbours(path, n):
 # Command line
 # =========================================================================
 
+def read_pgx(data):
+    """(width, height, samples) of a PGX file: "PG ML|LM +|- depth width height\\n", then the samples,
+    1, 2 or 4 bytes each."""
+    end = data.index(b"\n")
+    fields = data[:end].decode("ascii").split()
+    endian = ">" if fields[1] == "ML" else "<"
+    signed, depth = fields[2] == "-", int(fields[3])
+    width, height = int(fields[4]), int(fields[5])
+    nbytes = 1 if depth <= 8 else 2 if depth <= 16 else 4
+    code = {1: "b", 2: "h", 4: "i"}[nbytes]
+    return width, height, struct.unpack_from(endian + str(width * height) + (code if signed else code.upper()),
+                                             data, end + 1)
+
+
 def decode_residual_layer(h):
     """Section "Residual layer": the samples r in grid order (x fastest), decoded by OpenJPEG's
     opj_decompress (libopenjp2-tools) from the codestream, then taken out of the slice mosaic."""
@@ -462,26 +476,28 @@ def decode_residual_layer(h):
         with open(j2k, "wb") as out:
             out.write(h["residual_layer"])
         run = subprocess.run(["opj_decompress", "-i", j2k, "-o", pgx], capture_output=True)
-        produced = [n for n in os.listdir(work) if n.endswith(".pgx")]
-        if run.returncode != 0 or len(produced) != 1:
+        # One component: layer.pgx (or layer_0.pgx); several: layer_0.pgx, layer_1.pgx, ...
+        produced = sorted((n for n in os.listdir(work) if n.endswith(".pgx")),
+                          key=lambda n: int(n[6:-4]) if n[5:6] == "_" else 0)
+        if run.returncode != 0 or not produced:
             raise DamagedFile("damaged residual layer (opj_decompress failed)")
-        with open(os.path.join(work, produced[0]), "rb") as f:
-            data = f.read()
+        planes = []
+        for name in produced:
+            with open(os.path.join(work, name), "rb") as f:
+                planes.append(read_pgx(f.read()))
     finally:
         shutil.rmtree(work, ignore_errors=True)
-    # PGX: "PG ML|LM +|- depth width height\n", then the samples, 1, 2 or 4 bytes each.
-    end = data.index(b"\n")
-    fields = data[:end].decode("ascii").split()
-    endian = ">" if fields[1] == "ML" else "<"
-    signed, depth = fields[2] == "-", int(fields[3])
-    width, height = int(fields[4]), int(fields[5])
+    samples = []
+    if len(planes) > 1:  # one component per slice
+        if len(planes) != sz or any(w != sx or hh != sy for w, hh, _ in planes):
+            raise DamagedFile("damaged residual layer (neither a mosaic nor one component per slice)")
+        for _, _, plane in planes:
+            samples.extend(plane)
+        return samples
+    width, height, mosaic = planes[0]
     if width % sx or height % sy or height // sy != -(-sz // (width // sx)):
         raise DamagedFile("damaged residual layer (not a mosaic of %d slices of %dx%d samples)" % (sz, sx, sy))
-    nbytes = 1 if depth <= 8 else 2 if depth <= 16 else 4
-    code = {1: "b", 2: "h", 4: "i"}[nbytes]
-    mosaic = struct.unpack_from(endian + str(width * height) + (code if signed else code.upper()), data, end + 1)
     columns = width // sx
-    samples = []
     for z in range(sz):
         x0, y0 = (z % columns) * sx, (z // columns) * sy
         for y in range(sy):

@@ -214,8 +214,12 @@ ChooseLayers(const EncoderInput & input, std::size_t fileBytes, std::size_t head
   // Measured on the 5 mm CT series at 0.125 bpv, a residual in the 2% the points leave: +0.35 dB.
   if (room(payload.size()) >= minimumCodestream)
   {
-    ResidualChoice c =
-      ChooseResidualLayer(input.voxels, type, r.approximation, step, room(payload.size()), { Wavelet::Irreversible97 });
+    ResidualChoice       c = ChooseResidualLayer(input.voxels,
+                                           type,
+                                           r.approximation,
+                                           step,
+                                           room(payload.size()),
+                                           { { Wavelet::Irreversible97, Arrangement::Mosaic } });
     Approximation        spline = r.approximation;
     std::vector<uint8_t> splinePayload = payload;
     keep(std::move(c), std::move(spline), std::move(splinePayload), q);
@@ -240,7 +244,10 @@ ChooseLayers(const EncoderInput & input, std::size_t fileBytes, std::size_t head
                                            corners,
                                            step,
                                            room(cornersPayload.size()),
-                                           { Wavelet::Irreversible97, Wavelet::Reversible53 });
+                                           { { Wavelet::Irreversible97, Arrangement::Mosaic },
+                                             { Wavelet::Reversible53, Arrangement::Mosaic },
+                                             { Wavelet::Irreversible97, Arrangement::Components },
+                                             { Wavelet::Reversible53, Arrangement::Components } });
     keep(std::move(c), std::move(corners), std::move(cornersPayload), cornersStep);
   }
 }

@@ -464,6 +464,18 @@ TEST_F(FormatSpecification, ResidualLayer)
     const std::string path = Path("residual.dcv");
     WriteFileAtomically(path, r.bytes);
     ExpectAgreement(path);
+    // Both arrangements of the slices, whichever the encoder chose.
+    FileHeader           h;
+    std::vector<uint8_t> payload;
+    ParseFile(r.bytes, path, h, payload);
+    const auto samples = DecodeResidualLayer(h.residualLayer, h.size, path);
+    for (Arrangement a : { Arrangement::Mosaic, Arrangement::Components })
+    {
+      h.residualLayer = EncodeResidualLayer(samples, h.size, h.residualLayer.size(), Wavelet::Irreversible97, a);
+      ASSERT_FALSE(h.residualLayer.empty());
+      WriteFileAtomically(path, SerializeFile(h, payload));
+      ExpectAgreement(path);
+    }
   }
 }
 

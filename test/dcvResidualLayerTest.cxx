@@ -90,9 +90,12 @@ TEST(ResidualLayer, ReversibleWithRoomIsExact)
   for (const GridSize g : { GridSize{ 20, 12, 7 }, GridSize{ 9, 33, 2 }, GridSize{ 2, 2, 2 } })
   {
     const auto samples = Samples(g, 300, 1);
-    const auto codestream = dcv::EncodeResidualLayer(samples, g, 1 << 20, dcv::Wavelet::Reversible53);
-    ASSERT_FALSE(codestream.empty());
-    EXPECT_EQ(dcv::DecodeResidualLayer(codestream, g, "x"), samples) << g.x << "x" << g.y << "x" << g.z;
+    for (dcv::Arrangement a : { dcv::Arrangement::Mosaic, dcv::Arrangement::Components })
+    {
+      const auto codestream = dcv::EncodeResidualLayer(samples, g, 1 << 20, dcv::Wavelet::Reversible53, a);
+      ASSERT_FALSE(codestream.empty());
+      EXPECT_EQ(dcv::DecodeResidualLayer(codestream, g, "x"), samples) << g.x << "x" << g.y << "x" << g.z;
+    }
   }
 }
 
@@ -100,12 +103,16 @@ TEST(ResidualLayer, StaysWithinItsBudgetAndImprovesWithIt)
 {
   const GridSize g{ 48, 40, 9 };
   const auto     samples = Samples(g, 2000, 2);
-  for (dcv::Wavelet w : { dcv::Wavelet::Irreversible97, dcv::Wavelet::Reversible53 })
+  for (const dcv::ResidualCoding c :
+       { dcv::ResidualCoding{ dcv::Wavelet::Irreversible97, dcv::Arrangement::Mosaic },
+         dcv::ResidualCoding{ dcv::Wavelet::Reversible53, dcv::Arrangement::Mosaic },
+         dcv::ResidualCoding{ dcv::Wavelet::Irreversible97, dcv::Arrangement::Components } })
   {
-    double previous = std::numeric_limits<double>::infinity();
+    const dcv::Wavelet w = c.wavelet;
+    double             previous = std::numeric_limits<double>::infinity();
     for (std::size_t budget : { 400, 1600, 6400 })
     {
-      const auto codestream = dcv::EncodeResidualLayer(samples, g, budget, w);
+      const auto codestream = dcv::EncodeResidualLayer(samples, g, budget, w, c.arrangement);
       ASSERT_FALSE(codestream.empty()) << budget;
       EXPECT_LE(codestream.size(), budget);
       EXPECT_GE(codestream.size(), budget * 9 / 10) << "the budget is not used";
@@ -114,7 +121,8 @@ TEST(ResidualLayer, StaysWithinItsBudgetAndImprovesWithIt)
       previous = error;
     }
     // Deterministic: the same bytes again (OpenJPEG runs threaded).
-    EXPECT_EQ(dcv::EncodeResidualLayer(samples, g, 1600, w), dcv::EncodeResidualLayer(samples, g, 1600, w));
+    EXPECT_EQ(dcv::EncodeResidualLayer(samples, g, 1600, w, c.arrangement),
+              dcv::EncodeResidualLayer(samples, g, 1600, w, c.arrangement));
   }
   EXPECT_TRUE(dcv::EncodeResidualLayer(samples, g, 10, dcv::Wavelet::Irreversible97).empty());
   EXPECT_THROW(dcv::EncodeResidualLayer(std::vector<int32_t>(10, 0), g, 100, dcv::Wavelet::Reversible53),
@@ -140,8 +148,8 @@ TEST(ResidualLayer, DamagedLayersAreRefusedByName)
   };
   expectRefused(std::vector<uint8_t>(codestream.begin(), codestream.begin() + 20), g, "");
   expectRefused(std::vector<uint8_t>(64, 0x5a), g, "unreadable");
-  expectRefused(codestream, { 24, 20, 13 }, "not a mosaic of 13 slices");
-  expectRefused(codestream, { 12, 20, 6 }, "not a mosaic");
+  expectRefused(codestream, { 24, 20, 13 }, "neither a mosaic of 13 slices");
+  expectRefused(codestream, { 12, 20, 6 }, "nor one component per slice");
   // Any damage past the header decodes to something or is refused, never a crash.
   std::mt19937 random(5);
   for (int i = 0; i < 200; ++i)
