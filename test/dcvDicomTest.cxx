@@ -67,6 +67,8 @@ protected:
   {
     DcmFileFormat dicom;
     ASSERT_TRUE(dicom.loadFile((m_Series + "/" + file).c_str()).good()) << file;
+    // DCMTK reads pixel data lazily: load it before the file is written over itself.
+    ASSERT_TRUE(dicom.loadAllDataIntoMemory().good()) << file;
     ASSERT_TRUE(dicom.getDataset()->putAndInsertString(key, value.c_str()).good());
     ASSERT_TRUE(dicom.saveFile((m_Series + "/" + file).c_str()).good()) << file;
   }
