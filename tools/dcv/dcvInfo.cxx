@@ -45,7 +45,12 @@ Info(const std::string & input)
             << "mode: " << (h.mode <= uint8_t(Mode::Best) ? ModeName(Mode(h.mode)) : "unknown") << "\n"
             << "points: " << h.numberOfPoints << "\n"
             << "scale: " << h.scale[0] << " " << h.scale[1] << " " << h.scale[2] << "\n"
-            << "quantization: " << h.quantizationOrigin << " + k * " << h.quantizationStep << "\n";
+            << "quantization: " << h.quantizationOrigin << " + k * " << h.quantizationStep << "\n"
+            << "residual layer: ";
+  if (h.residualLayer.empty())
+    std::cout << "none\n";
+  else
+    std::cout << h.residualLayer.size() << " bytes of JPEG 2000, step " << h.residualStep << "\n";
   for (const auto & kv : h.metadata)
     std::cout << "metadata: " << kv.first << " = " << kv.second << "\n";
 }
