@@ -66,6 +66,8 @@ FLAG_DIRECTION = 1
 FLAG_METADATA = 2
 FLAG_SCALE = 4
 FLAG_RESIDUAL = 8
+FLAG_DEFLATED = 16
+MAXIMUM_INFLATED_METADATA = 16 << 20
 IDENTITY = (1.0, 0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 1.0)
 
 
@@ -109,7 +111,8 @@ def parse_container(data):
     pixel_type, flags, mode = f.unpack("3B", "header")
     if pixel_type not in PIXEL_TYPES:
         raise DamagedFile("unknown pixel type code %d" % pixel_type)
-    if flags & ~(FLAG_DIRECTION | FLAG_METADATA | FLAG_SCALE | FLAG_RESIDUAL):
+    if flags & ~(FLAG_DIRECTION | FLAG_METADATA | FLAG_SCALE | FLAG_RESIDUAL | FLAG_DEFLATED) or \
+            (flags & FLAG_DEFLATED and not flags & FLAG_METADATA):
         raise DamagedFile("unknown header flags %d" % flags)
     size = f.unpack("3H", "header")
     if min(size) < 2:
@@ -148,13 +151,32 @@ def parse_container(data):
         count, block_size = f.unpack("2I", "metadata")
         if block_size != f.left():
             raise DamagedFile("inconsistent metadata block")
+        if flags & FLAG_DEFLATED:
+            (inflated_size,) = f.unpack("I", "metadata")
+            if inflated_size > MAXIMUM_INFLATED_METADATA:
+                raise DamagedFile("absurd metadata size %d" % inflated_size)
+            stream = f.take(f.left(), "metadata")
+            try:
+                inflater = zlib.decompressobj()
+                pairs = inflater.decompress(stream, inflated_size + 1)
+                if len(pairs) != inflated_size or not inflater.eof or inflater.unused_data:
+                    raise zlib.error("size")
+            except zlib.error:
+                raise DamagedFile("damaged metadata block")
+        else:
+            pairs = f.take(block_size, "metadata")
+        m = _Fields(pairs, 0, len(pairs))
+        if count > len(pairs) // 8:
+            raise DamagedFile("inconsistent metadata block")
         for _ in range(count):
             pair = []
             for _ in range(2):
-                (text_length,) = f.unpack("I", "metadata")
+                (text_length,) = m.unpack("I", "metadata")
                 # UTF-8 by the document; shown with replacement characters if not (it is not checked).
-                pair.append(f.take(text_length, "metadata").decode("utf-8", errors="replace"))
+                pair.append(m.take(text_length, "metadata").decode("utf-8", errors="replace"))
             metadata.append(tuple(pair))
+        if m.left() != 0:
+            raise DamagedFile("inconsistent metadata block")
     if f.left() != 0:
         raise DamagedFile("%d unexpected bytes before the checksum" % f.left())
 

@@ -35,6 +35,9 @@ constexpr uint8_t FlagDirection = 1; // a non-identity direction matrix follows 
 constexpr uint8_t FlagMetadata = 2;  // a metadata block follows the payload
 constexpr uint8_t FlagScale = 4;     // three per-axis scales of the Delaunay space follow the direction
 constexpr uint8_t FlagResidual = 8;  // a residual layer follows the payload
+constexpr uint8_t FlagDeflated = 16; // the metadata pairs are deflated (zlib)
+/** Largest inflated metadata block a reader accepts: no zip bomb grows past it. */
+constexpr uint32_t MaximumInflatedMetadata = 16u << 20;
 
 class Writer
 {
@@ -230,8 +233,28 @@ SerializeFile(const FileHeader & h, const std::vector<uint8_t> & payload)
   w.Bytes(Magic, 4);
   w.U8(FileHeader::Version);
   w.U8(uint8_t(h.pixelType));
+  // The metadata pairs, deflated when that is smaller (DICOM attributes: 1150 bytes to about 500).
+  Writer pairs;
+  for (const auto & kv : h.metadata)
+  {
+    pairs.U32(uint32_t(kv.first.size()));
+    pairs.Bytes(reinterpret_cast<const uint8_t *>(kv.first.data()), kv.first.size());
+    pairs.U32(uint32_t(kv.second.size()));
+    pairs.Bytes(reinterpret_cast<const uint8_t *>(kv.second.data()), kv.second.size());
+  }
+  std::vector<uint8_t> deflated;
+  if (metadata && pairs.bytes.size() <= MaximumInflatedMetadata)
+  {
+    uLongf size = compressBound(uLong(pairs.bytes.size()));
+    deflated.resize(size);
+    if (compress2(deflated.data(), &size, pairs.bytes.data(), uLong(pairs.bytes.size()), 9) == Z_OK &&
+        size + 4 < pairs.bytes.size())
+      deflated.resize(size);
+    else
+      deflated.clear();
+  }
   w.U8(uint8_t((direction ? FlagDirection : 0) | (metadata ? FlagMetadata : 0) | (scaled ? FlagScale : 0) |
-               (residual ? FlagResidual : 0)));
+               (residual ? FlagResidual : 0) | (deflated.empty() ? 0 : FlagDeflated)));
   w.U8(h.mode);
   w.U16(uint16_t(h.size.x));
   w.U16(uint16_t(h.size.y));
@@ -263,17 +286,18 @@ SerializeFile(const FileHeader & h, const std::vector<uint8_t> & payload)
   }
   if (metadata)
   {
-    Writer block;
-    for (const auto & kv : h.metadata)
-    {
-      block.U32(uint32_t(kv.first.size()));
-      block.Bytes(reinterpret_cast<const uint8_t *>(kv.first.data()), kv.first.size());
-      block.U32(uint32_t(kv.second.size()));
-      block.Bytes(reinterpret_cast<const uint8_t *>(kv.second.data()), kv.second.size());
-    }
     w.U32(uint32_t(h.metadata.size()));
-    w.U32(uint32_t(block.bytes.size()));
-    w.Bytes(block.bytes.data(), block.bytes.size());
+    if (deflated.empty())
+    {
+      w.U32(uint32_t(pairs.bytes.size()));
+      w.Bytes(pairs.bytes.data(), pairs.bytes.size());
+    }
+    else
+    {
+      w.U32(uint32_t(4 + deflated.size()));
+      w.U32(uint32_t(pairs.bytes.size()));
+      w.Bytes(deflated.data(), deflated.size());
+    }
   }
   w.U32(Crc32(w.bytes.data(), w.bytes.size()));
   return w.bytes;
@@ -317,7 +341,8 @@ ParseFile(const std::vector<uint8_t> & bytes, const std::string & name, FileHead
   }
   h.pixelType = PixelType(type);
   const uint8_t flags = r.U8("header");
-  if (flags & ~(FlagDirection | FlagMetadata | FlagScale | FlagResidual))
+  if (flags & ~(FlagDirection | FlagMetadata | FlagScale | FlagResidual | FlagDeflated) ||
+      ((flags & FlagDeflated) && !(flags & FlagMetadata)))
   {
     throw FormatError(name + ": unknown header flags " + std::to_string(flags));
   }
@@ -399,21 +424,53 @@ ParseFile(const std::vector<uint8_t> & bytes, const std::string & name, FileHead
   {
     const uint32_t count = r.U32("metadata");
     const uint32_t size = r.U32("metadata");
-    if (size != r.Left() || count > size / 8)
+    if (size != r.Left())
+    {
+      throw FormatError(name + ": inconsistent metadata block");
+    }
+    std::vector<uint8_t> inflated;
+    if (flags & FlagDeflated)
+    {
+      const uint32_t expected = r.U32("metadata");
+      if (expected > MaximumInflatedMetadata)
+      {
+        throw FormatError(name + ": absurd metadata size " + std::to_string(expected));
+      }
+      inflated.resize(expected);
+      uLongf produced = expected;
+      if (uncompress(inflated.data(), &produced, bytes.data() + r.Position(), uLong(r.Left())) != Z_OK ||
+          produced != expected)
+      {
+        throw FormatError(name + ": damaged metadata block");
+      }
+      r.Skip(r.Left());
+    }
+    else
+    {
+      inflated.assign(bytes.begin() + std::ptrdiff_t(r.Position()),
+                      bytes.begin() + std::ptrdiff_t(r.Position() + size));
+      r.Skip(size);
+    }
+    Reader m(inflated, inflated.size(), name);
+    if (count > inflated.size() / 8)
     {
       throw FormatError(name + ": inconsistent metadata block");
     }
     for (uint32_t i = 0; i < count; ++i)
     {
       std::string kv[2];
-      for (auto & s : kv)
+      for (auto & t : kv)
       {
-        const uint32_t n = r.U32("metadata");
-        r.Need(n, "metadata");
-        s.assign(reinterpret_cast<const char *>(bytes.data() + r.Position()), n);
-        r.Skip(n);
+        const uint32_t n = m.U32("metadata");
+        m.Need(n, "metadata");
+        t.assign(reinterpret_cast<const char *>(inflated.data() + m.Position()), n);
+        m.Skip(n);
       }
       h.metadata.emplace_back(kv[0], kv[1]);
+    }
+    if (m.Left() != 0)
+    {
+      throw FormatError(name + ": inconsistent metadata block");
     }
   }
   if (r.Left() != 0)

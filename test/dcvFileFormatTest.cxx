@@ -322,3 +322,31 @@ TEST(Codec, RateControlRefusesABudgetTheCornersExceed)
 }
 
 } // namespace
+
+TEST(FileFormat, MetadataIsDeflatedWhenThatIsSmaller)
+{
+  FileHeader h = SampleHeader(false);
+  for (int i = 0; i < 20; ++i)
+    h.metadata.emplace_back("DICOM SeriesInstanceUID " + std::to_string(i), "1.3.46.670589.33.1.6002432791750815306");
+  const auto bytes = SerializeFile(h, { 1, 2 });
+  EXPECT_EQ(bytes[6] & 16, 16) << "not deflated";
+  FileHeader           back;
+  std::vector<uint8_t> payload;
+  ParseFile(bytes, "x", back, payload);
+  EXPECT_EQ(back.metadata, h.metadata);
+  std::size_t plain = 0;
+  for (const auto & kv : h.metadata)
+    plain += 8 + kv.first.size() + kv.second.size();
+  EXPECT_LT(bytes.size(), SerializeFile(SampleHeader(false), { 1, 2 }).size() + plain / 2);
+  // Tiny metadata stays as it is (deflating would not pay).
+  FileHeader small = SampleHeader(false);
+  small.metadata = { { "a", "b" } };
+  EXPECT_EQ(SerializeFile(small, {}).at(6) & 16, 0);
+  // A damaged stream is refused even with a recomputed CRC-32.
+  auto damaged = bytes;
+  damaged[damaged.size() - 10] ^= 0x55;
+  const uint32_t crc = uint32_t(crc32(0L, damaged.data(), uInt(damaged.size() - 4)));
+  for (int i = 0; i < 4; ++i)
+    damaged[damaged.size() - 4 + i] = uint8_t(crc >> (8 * i));
+  EXPECT_NE(ParseError(damaged).find("metadata"), std::string::npos) << ParseError(damaged);
+}

@@ -270,10 +270,12 @@ protected:
       EXPECT_NE(it, r.fields.end()) << "the reference decoder printed no '" << name << "'";
       return it == r.fields.end() ? Tokens() : it->second;
     };
-    const bool   direction = h.direction != std::array<double, 9>{ 1, 0, 0, 0, 1, 0, 0, 0, 1 };
-    const bool   scaled = h.scale != GridScale{ { 1, 1, 1 } };
-    const bool   residual = h.residualStep > 0.0;
-    const int    flags = (direction ? 1 : 0) | (h.metadata.empty() ? 0 : 2) | (scaled ? 4 : 0) | (residual ? 8 : 0);
+    const bool direction = h.direction != std::array<double, 9>{ 1, 0, 0, 0, 1, 0, 0, 0, 1 };
+    const bool scaled = h.scale != GridScale{ { 1, 1, 1 } };
+    const bool residual = h.residualStep > 0.0;
+    const int  deflated = d.bytes[6] & 16; // the writer's choice; the pairs below check the inflated block
+    const int  flags =
+      (direction ? 1 : 0) | (h.metadata.empty() ? 0 : 2) | (scaled ? 4 : 0) | (residual ? 8 : 0) | deflated;
     const Tokens type = field("pixel_type");
     const Tokens mode = field("mode");
     EXPECT_EQ(field("version"), Tokens{ std::to_string(FileHeader::Version) });
@@ -459,8 +461,11 @@ TEST_F(FormatSpecification, ResidualLayer)
   {
     EncoderOptions options;
     options.bitsPerVoxel = bpv;
+    for (int i = 0; i < 12; ++i) // as DICOM attributes are: deflated (flag bit 4)
+      options.metadata.emplace_back("DICOM Attribute" + std::to_string(i), "1.3.46.670589.33.1." + std::to_string(i));
     const EncoderResult r = Encode(input, options);
     ASSERT_GT(r.header.residualStep, 0.0) << bpv;
+    ASSERT_EQ(r.bytes[6] & 16, 16) << "the metadata is not deflated";
     const std::string path = Path("residual.dcv");
     WriteFileAtomically(path, r.bytes);
     ExpectAgreement(path);
