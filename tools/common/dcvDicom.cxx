@@ -88,6 +88,25 @@ IsDicomInput(const std::string & path)
   return fs::is_regular_file(path) && io->CanReadFile(path.c_str());
 }
 
+std::vector<std::pair<std::string, std::vector<std::string>>>
+ListDicomSeries(const std::string & directory)
+{
+  auto names = itk::GDCMSeriesFileNames::New();
+  names->SetUseSeriesDetails(false); // group by Series Instance UID alone: size and geometry are checked later
+  names->SetDirectory(directory);
+  std::vector<std::pair<std::string, std::vector<std::string>>> series;
+  try
+  {
+    for (const auto & uid : names->GetSeriesUIDs())
+      series.emplace_back(uid, names->GetFileNames(uid));
+  }
+  catch (const itk::ExceptionObject & e)
+  {
+    throw Failure("cannot list the DICOM series of " + Quoted(directory) + ": " + e.GetDescription());
+  }
+  return series;
+}
+
 DicomSeries
 FindDicomSeries(const std::string & path, const std::string & uid, std::size_t & skipped)
 {
@@ -98,29 +117,18 @@ FindDicomSeries(const std::string & path, const std::string & uid, std::size_t &
     // One file stands for its series.
     wanted = Tag(ReadHeader(path)->GetMetaDataDictionary(), "0020|000e");
   }
-  auto names = itk::GDCMSeriesFileNames::New();
-  names->SetUseSeriesDetails(false); // group by Series Instance UID alone: size and geometry are checked here
-  names->SetDirectory(directory.string());
-  std::vector<std::string> uids;
-  try
-  {
-    uids = names->GetSeriesUIDs();
-  }
-  catch (const itk::ExceptionObject & e)
-  {
-    throw Failure("cannot list the DICOM series of " + Quoted(directory.string()) + ": " + e.GetDescription());
-  }
+  const auto  listed = ListDicomSeries(directory.string());
   std::size_t files = 0, dicom = 0;
   for (const auto & entry : fs::directory_iterator(directory))
   {
     files += entry.is_regular_file() ? 1 : 0;
   }
   std::vector<DicomSeries> all;
-  for (const auto & u : uids)
+  for (const auto & [u, seriesFiles] : listed)
   {
     DicomSeries s;
     s.uid = u;
-    s.files = names->GetFileNames(u);
+    s.files = seriesFiles;
     dicom += s.files.size();
     if (!s.files.empty())
     {

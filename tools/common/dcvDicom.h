@@ -52,6 +52,11 @@ IsDicomInput(const std::string & path);
 DicomSeries
 FindDicomSeries(const std::string & path, const std::string & uid, std::size_t & skipped);
 
+/** The DICOM series of one directory as GDCM groups them (by Series Instance UID alone: size and
+ * geometry are checked later): (UID, files) pairs. Failure naming the directory when GDCM cannot. */
+std::vector<std::pair<std::string, std::vector<std::string>>>
+ListDicomSeries(const std::string & directory);
+
 /** The pixel type of the series after rescale (int16 for CT in Hounsfield units). */
 PixelType
 DicomPixelType(const DicomSeries & series);

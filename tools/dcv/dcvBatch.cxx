@@ -20,7 +20,6 @@
 // spreads an archive over machines.
 #include "dcvCommand.h"
 #include "itkDCVEncoder.h"
-#include "itkGDCMSeriesFileNames.h"
 #include "itkMetaDataObject.h"
 #include "itkMultiThreaderBase.h"
 #include "itkObjectFactoryBase.h"
@@ -188,21 +187,8 @@ ListDirectory(const fs::path & tree, const fs::path & directory, const fs::path 
   });
   if (hasDicom)
   {
-    auto series = itk::GDCMSeriesFileNames::New();
-    series->SetUseSeriesDetails(false); // by Series Instance UID alone, as FindDicomSeries groups them
-    series->SetDirectory(directory.string());
-    std::vector<std::string> uids;
-    try
+    for (const auto & [uid, files] : ListDicomSeries(directory.string()))
     {
-      uids = series->GetSeriesUIDs();
-    }
-    catch (const itk::ExceptionObject & e)
-    {
-      throw Failure("cannot list the DICOM series of " + Quoted(directory.string()) + ": " + e.GetDescription());
-    }
-    for (const auto & uid : uids)
-    {
-      const std::vector<std::string> files = series->GetFileNames(uid);
       if (files.empty())
       {
         continue;
@@ -749,25 +735,14 @@ const RegisterCommand batch{
                     "Directory of the .dcv files (created): the item's path in the tree with '/' as '_', plus "
                     "_<SeriesInstanceUID> for DICOM, then .dcv")
         ->required();
-      EncoderOptions & e = b->method.encoder;
-      auto *           bpv = command.add_option(
-        "--bpv", e.bitsPerVoxel, "Bits per voxel of each whole file (the point count and step are chosen)");
-      auto * psnr = command.add_option("--psnr", e.psnr, "Quality target, dB: per item the smallest file reaching it");
-      auto * points = command.add_option("--points,-n", e.numberOfPoints, "Number of significant points (at least 8)")
-                        ->check(CLI::NonNegativeNumber);
-      bpv->excludes(psnr)->excludes(points);
-      psnr->excludes(points);
-      command.add_flag(
-        "!--no-residual-layer", e.residualLayer, "With --bpv, points only: no JPEG 2000 residual layer is tried");
-      command.add_option(
-        "--step", e.quantizationStep, "Quantization step of the values (0: automatic, as compress chooses it)");
+      const TargetOptions target = AddTargetOptions(command, b->method.encoder);
       command.add_option("--jobs,-j", b->jobs, "Items compressed at a time (0: one per core)")
         ->check(CLI::NonNegativeNumber)
         ->capture_default_str();
       auto * shard =
         command.add_option("--shard", b->shard, "K/N: only the items whose index (in the sorted list) modulo N is K-1");
-      return [b, bpv, psnr, points, shard] {
-        b->targeted = bpv->count() + psnr->count() + points->count() > 0;
+      return [b, target, shard] {
+        b->targeted = target.bpv->count() + target.psnr->count() + target.points->count() > 0;
         b->sharded = shard->count() > 0;
         Batch(*b);
       };

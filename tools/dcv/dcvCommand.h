@@ -89,6 +89,17 @@ WithVolume(const std::string & input, const std::string & series, const std::str
 void
 AddMethodOptions(CLI::App & command, std::string & input, MethodOptions & o);
 
+/** The encoder's target options of compress and batch (--bpv, --psnr, --points, mutually exclusive),
+ * --step and --no-residual-layer; returns the three targets' options, so callers can ask which was given. */
+struct TargetOptions
+{
+  CLI::Option * bpv;
+  CLI::Option * psnr;
+  CLI::Option * points;
+};
+TargetOptions
+AddTargetOptions(CLI::App & command, EncoderOptions & e);
+
 /** Seconds since `start`. */
 double
 SecondsSince(std::chrono::steady_clock::time_point start);

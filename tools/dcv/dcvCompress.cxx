@@ -72,33 +72,15 @@ Compress(const CompressOptions & c)
   }
 }
 
-const RegisterCommand compress{
-  { "compress",
-    "Compress a volume into a .dcv file; prints bytes, bpv, points, step, PSNR (of what "
-    "decompress gives) and seconds",
-    [](CLI::App & command) -> std::function<void()> {
-      auto c = std::make_shared<CompressOptions>();
-      AddMethodOptions(command, c->input, c->method);
-      command.add_option("OUTPUT", c->output, "Output .dcv file")->required();
-      EncoderOptions & e = c->method.encoder;
-      auto *           bpv = command.add_option(
-        "--bpv", e.bitsPerVoxel, "Bits per voxel of the whole file (the point count and step are chosen)");
-      auto * psnr =
-        command.add_option("--psnr", e.psnr, "Quality target, dB: the smallest file whose decoded PSNR reaches it");
-      auto * points = command.add_option("--points,-n", e.numberOfPoints, "Number of significant points (at least 8)")
-                        ->check(CLI::NonNegativeNumber)
-                        ->capture_default_str();
-      bpv->excludes(psnr)->excludes(points);
-      command.add_flag(
-        "!--no-residual-layer", e.residualLayer, "With --bpv, points only: no JPEG 2000 residual layer is tried");
-      psnr->excludes(points);
-      command.add_option("--step",
-                         e.quantizationStep,
-                         "Quantization step of the values (0: with --bpv the best of 1, 2 "
-                         "and 4 times 1/64 of the peak, else 1/64 of the peak, less where "
-                         "--psnr needs it)");
-      return [c] { Compress(*c); };
-    } }
-};
+const RegisterCommand compress{ { "compress",
+                                  "Compress a volume into a .dcv file; prints bytes, bpv, points, step, PSNR (of what "
+                                  "decompress gives) and seconds",
+                                  [](CLI::App & command) -> std::function<void()> {
+                                    auto c = std::make_shared<CompressOptions>();
+                                    AddMethodOptions(command, c->input, c->method);
+                                    command.add_option("OUTPUT", c->output, "Output .dcv file")->required();
+                                    AddTargetOptions(command, c->method.encoder);
+                                    return [c] { Compress(*c); };
+                                  } } };
 } // namespace
 } // namespace dcv::tools

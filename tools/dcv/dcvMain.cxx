@@ -91,6 +91,27 @@ AddMethodOptions(CLI::App & command, std::string & input, MethodOptions & o)
   command.add_flag("--quiet,-q", o.quiet, "Print nothing but errors");
 }
 
+TargetOptions
+AddTargetOptions(CLI::App & command, EncoderOptions & e)
+{
+  TargetOptions t;
+  t.bpv = command.add_option(
+    "--bpv", e.bitsPerVoxel, "Bits per voxel of the whole file (the point count and step are chosen)");
+  t.psnr = command.add_option("--psnr", e.psnr, "Quality target, dB: the smallest file whose decoded PSNR reaches it");
+  t.points = command.add_option("--points,-n", e.numberOfPoints, "Number of significant points (at least 8)")
+               ->check(CLI::NonNegativeNumber)
+               ->capture_default_str();
+  t.bpv->excludes(t.psnr)->excludes(t.points);
+  t.psnr->excludes(t.points);
+  command.add_flag(
+    "!--no-residual-layer", e.residualLayer, "With --bpv, points only: no JPEG 2000 residual layer is tried");
+  command.add_option("--step",
+                     e.quantizationStep,
+                     "Quantization step of the values (0: with --bpv the best of 1, 2 and 4 times 1/64 of the peak, "
+                     "else 1/64 of the peak, less where --psnr needs it)");
+  return t;
+}
+
 double
 SecondsSince(std::chrono::steady_clock::time_point start)
 {
