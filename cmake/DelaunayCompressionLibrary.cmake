@@ -9,11 +9,12 @@ find_package(CGAL REQUIRED)
 find_package(Eigen3 3.3 REQUIRED NO_MODULE)
 find_package(ZLIB REQUIRED) # crc32 of the .dcv files
 find_package(Threads REQUIRED)
+find_package(TBB REQUIRED) # the encoder's threads
 # The residual layer's JPEG 2000 (libopenjp2-7-dev; its CMake files carry no version, pkg-config does).
 find_package(PkgConfig REQUIRED)
 pkg_check_modules(OpenJPEG REQUIRED IMPORTED_TARGET libopenjp2>=2.5)
 target_link_libraries(DelaunayCompression ${_dcv_private} CGAL::CGAL Eigen3::Eigen ZLIB::ZLIB Threads::Threads
-  PkgConfig::OpenJPEG)
+  TBB::tbb PkgConfig::OpenJPEG)
 
 # The .dcv image and mesh IO as an ITK plugin: a directory holding it, in ITK_AUTOLOAD_PATH, lets any
 # ITK program read and write .dcv files without linking the module.

@@ -64,6 +64,8 @@ struct EncoderOptions
   bool residualLayer{ true };
   /** Key/value pairs stored in the file's metadata block (they count against the bit budget). */
   std::vector<std::pair<std::string, std::string>> metadata;
+  /** Threads the encoder may use (0: one per core). The file is the same whatever their number. */
+  unsigned int threads{ 0 };
   /** Called with the fraction done, in [0, 1]; it may throw to abort. */
   std::function<void(double)> progress;
 };

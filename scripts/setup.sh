@@ -10,6 +10,7 @@ packages=(
   zlib1g-dev              # crc32 of the .dcv files
   libopenjp2-7-dev        # JPEG 2000 of the residual layer
   libopenjp2-tools        # opj_decompress: the reference decoder's residual layer
+  libtbb-dev              # the encoder's threads (oneTBB)
   libcli11-dev            # dcv's arguments
   libgtest-dev            # tests
   libdcmtk-dev            # DICOM series out; the tests edit copies of the dev series

@@ -17,6 +17,7 @@
  *=========================================================================*/
 #include "dcvEncoder.h"
 #include "dcvCodec.h"
+#include "dcvParallel.h"
 #include "dcvRateControl.h"
 #include "dcvResidualLayer.h"
 
@@ -158,7 +159,7 @@ DecodedSquaredError(const Approximation & a, PixelType type, const float * voxel
   double error = 0.0;
   VisitPixelType(type, [&](auto pixel) {
     std::vector<decltype(pixel)> decoded(a.grid.NumberOfVoxels());
-    Rasterize(a, decoded.data());
+    Rasterize(a, decoded.data(), CurrentThreads());
     error = SquaredError(voxels, decoded.data(), decoded.size());
   });
   return error;
@@ -370,15 +371,10 @@ Run(const EncoderInput & input, const EncoderOptions & o, bool coded, std::vecto
 }
 } // namespace
 
-EncoderResult
-Approximate(const EncoderInput & input, const EncoderOptions & options)
+namespace
 {
-  std::vector<uint8_t> payload;
-  return Run(input, options, false, payload);
-}
-
 EncoderResult
-Encode(const EncoderInput & input, const EncoderOptions & options)
+EncodeFile(const EncoderInput & input, const EncoderOptions & options)
 {
   const auto           start = std::chrono::steady_clock::now();
   std::vector<uint8_t> payload;
@@ -392,6 +388,22 @@ Encode(const EncoderInput & input, const EncoderOptions & options)
   r.psnr = PSNR(DecodedSquaredError(r.approximation, r.header.pixelType, input.voxels), voxels, r.peak);
   r.timings.total = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
   return r;
+}
+} // namespace
+
+EncoderResult
+Approximate(const EncoderInput & input, const EncoderOptions & options)
+{
+  return WithThreads(options.threads, [&] {
+    std::vector<uint8_t> payload;
+    return Run(input, options, false, payload);
+  });
+}
+
+EncoderResult
+Encode(const EncoderInput & input, const EncoderOptions & options)
+{
+  return WithThreads(options.threads, [&] { return EncodeFile(input, options); });
 }
 
 } // namespace dcv

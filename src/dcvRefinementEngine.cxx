@@ -16,6 +16,7 @@
  *
  *=========================================================================*/
 #include "dcvRefinementEngine.h"
+#include "dcvParallel.h"
 #include "dcvTetrahedralization.h"
 
 #include <Eigen/IterativeLinearSolvers>
@@ -243,6 +244,7 @@ struct RefinementEngine::Impl
       ScanCell(c);
       volume += cellVolume[c.id];
     }
+
     volumeBefore[id] = volume;
   }
 
@@ -313,9 +315,20 @@ struct RefinementEngine::Impl
     }
   }
 
-  // Rasterizes a new cell against the image: its error sums, voxel count and worst voxel.
-  void
-  ScanCell(const Tetrahedralization::Cell & c)
+  /** What rasterizing a cell against the image gives: its error sums, voxel count and worst voxel. */
+  struct CellScan
+  {
+    double   sse{ 0.0 };
+    double   sseSelection{ 0.0 };
+    uint64_t count{ 0 };
+    uint64_t worstVoxel{ NoVoxel };
+    float    worst{ 0.0f };
+    double   volume{ 0.0 };
+  };
+
+  // Reads only: cells can be scanned on several threads at once.
+  CellScan
+  Scan(const Tetrahedralization::Cell & c) const
   {
     std::array<GridPoint, 4> p;
     std::array<double, 4>    v;
@@ -327,8 +340,8 @@ struct RefinementEngine::Impl
     const CanonicalTetrahedron t(p, v);
     const LinearFunction       L(t);
     const bool                 separate = selection != image;
+    CellScan                   s;
     double                     sse = 0.0, sseSelection = 0.0;
-    uint64_t                   count = 0;
     float                      worst = 0.0f;
     uint64_t                   worstVoxel = NoVoxel;
     ForEachSpan(grid, t.p, [&](int32_t y, int32_t z, int32_t x0, int32_t x1) {
@@ -355,35 +368,82 @@ struct RefinementEngine::Impl
           worstVoxel = rowOffset + uint64_t(x);
         }
       }
-      count += uint64_t(x1 - x0 + 1);
+      s.count += uint64_t(x1 - x0 + 1);
     });
-    const std::size_t id = c.id;
+    s.sse = sse;
+    s.sseSelection = separate ? sseSelection : sse;
+    s.worst = worst;
+    s.worstVoxel = worstVoxel;
+    s.volume = double(std::abs(SignedVolume6(p)));
+    return s;
+  }
+
+  // Records a scanned cell as live: its state, the error total and the heaps.
+  void
+  Commit(uint32_t id, const CellScan & s)
+  {
     GrowCells(id);
-    cellError[id] = sse;
-    cellSelection[id] = separate ? sseSelection : sse;
-    cellWorstError[id] = worst;
-    cellWorstVoxel[id] = worstVoxel;
-    cellVoxels[id] = count;
-    cellVolume[id] = double(std::abs(SignedVolume6(p)));
+    cellError[id] = s.sse;
+    cellSelection[id] = s.sseSelection;
+    cellWorstError[id] = s.worst;
+    cellWorstVoxel[id] = s.worstVoxel;
+    cellVoxels[id] = s.count;
+    cellVolume[id] = s.volume;
     cellAlive[id] = 1;
-    squaredError += sse;
-    if (worstVoxel != NoVoxel)
+    squaredError += s.sse;
+    if (s.worstVoxel != NoVoxel)
     {
-      byCellError.push(HeapEntry{ cellSelection[id], worstVoxel, c.id });
-      byVoxelError.push(HeapEntry{ worst, worstVoxel, c.id });
+      byCellError.push(HeapEntry{ s.sseSelection, s.worstVoxel, id });
+      byVoxelError.push(HeapEntry{ s.worst, s.worstVoxel, id });
     }
   }
 
-  // Recomputes every live cell (after the selection image or the values changed).
+  // Rasterizes a new cell against the image.
+  void
+  ScanCell(const Tetrahedralization::Cell & c)
+  {
+    Commit(c.id, Scan(c));
+  }
+
+  // Positions in `cells` sorted by each cell's lowest vertex (z, then y, then x): visited in this order,
+  // cells read the image slice by slice instead of jumping through it in the order of their ids.
+  std::vector<uint32_t>
+  SpatialOrder(const std::vector<Tetrahedralization::Cell> & cells) const
+  {
+    std::vector<std::pair<uint64_t, uint32_t>> keyed(cells.size());
+    ParallelFor(cells.size(), 1024, [&](std::size_t i) {
+      uint64_t key = ~uint64_t(0);
+      for (auto v : cells[i].vertices)
+      {
+        const GridPoint & q = mesh.Point(v);
+        key = std::min(key, (uint64_t(q[2]) << 32) | (uint64_t(q[1]) << 16) | uint64_t(q[0]));
+      }
+      keyed[i] = { key, uint32_t(i) };
+    });
+    std::sort(keyed.begin(), keyed.end());
+    std::vector<uint32_t> order(cells.size());
+    for (std::size_t k = 0; k < order.size(); ++k)
+    {
+      order[k] = keyed[k].second;
+    }
+    return order;
+  }
+
+  // Recomputes every live cell (after the selection image or the values changed): scanned in
+  // parallel, committed in id order, so the sums and heaps do not depend on the threads.
   void
   RescanAll()
   {
     byCellError = {};
     byVoxelError = {};
     squaredError = 0.0;
-    for (const auto & c : mesh.FiniteCells())
+    const auto            cells = mesh.FiniteCells();
+    const auto            order = SpatialOrder(cells);
+    std::vector<CellScan> scans(cells.size());
+    ParallelFor(cells.size(), 64, [&](std::size_t k) { scans[order[k]] = Scan(cells[order[k]]); });
+    for (std::size_t i = 0; i < cells.size(); ++i)
     {
-      ScanCell(c);
+      Commit(cells[i].id, scans[i]);
     }
   }
 
@@ -706,15 +766,18 @@ RefinementEngine::OptimizeValues()
     }
   }
   // Normal equations of min sum_x (I(x) - sum_k v_k phi_k(x))^2: M_jk = sum phi_j phi_k, b_j = sum I phi_j.
-  std::vector<Eigen::Triplet<double>> triplets;
-  triplets.reserve(cells.size() * 16);
-  Eigen::VectorXd b = Eigen::VectorXd::Zero(n);
-  for (const auto & c : cells)
-  {
+  // Each cell's 4x4 block on a thread into its own 16 triplets and 4 right-hand-side terms; b is summed
+  // in cell order (setFromTriplets sums duplicates in triplet order).
+  std::vector<Eigen::Triplet<double>> triplets(cells.size() * 16);
+  std::vector<std::array<double, 4>>  rhs(cells.size());
+  const auto                          order = d.SpatialOrder(cells);
+  ParallelFor(cells.size(), 64, [&](std::size_t k) {
+    const std::size_t        i = order[k];
+    const auto &             c = cells[i];
     std::array<GridPoint, 4> p;
-    for (int i = 0; i < 4; ++i)
+    for (int k = 0; k < 4; ++k)
     {
-      p[i] = d.mesh.Point(c.vertices[i]);
+      p[k] = d.mesh.Point(c.vertices[k]);
     }
     std::array<LinearFunction, 3> phi;
     for (int k = 0; k < 3; ++k)
@@ -746,13 +809,20 @@ RefinementEngine::OptimizeValues()
     });
     for (int j = 0; j < 4; ++j)
     {
-      const int J = index[c.vertices[j]];
-      b[J] += r[j];
+      rhs[i][j] = r[j];
       for (int k = 0; k < 4; ++k)
       {
-        const int K = index[c.vertices[k]];
-        triplets.emplace_back(J, K, j <= k ? m[j][k] : m[k][j]);
+        triplets[16 * i + 4 * j + k] =
+          Eigen::Triplet<double>(index[c.vertices[j]], index[c.vertices[k]], j <= k ? m[j][k] : m[k][j]);
       }
+    }
+  });
+  Eigen::VectorXd b = Eigen::VectorXd::Zero(n);
+  for (std::size_t i = 0; i < cells.size(); ++i)
+  {
+    for (int j = 0; j < 4; ++j)
+    {
+      b[index[cells[i].vertices[j]]] += rhs[i][j];
     }
   }
   Eigen::SparseMatrix<double> M(n, n);

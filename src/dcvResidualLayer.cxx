@@ -17,6 +17,7 @@
  *=========================================================================*/
 #include "dcvResidualLayer.h"
 #include "dcvFileFormat.h"
+#include "dcvParallel.h"
 
 // The path names the system OpenJPEG 2.5: ITK ships an older, mangled openjpeg.h on its include path.
 #include <openjpeg-2.5/openjpeg.h>
@@ -158,7 +159,7 @@ Quiet(opj_codec_t * codec, std::string & error)
 int
 Threads()
 {
-  return int(std::max(1u, std::thread::hardware_concurrency()));
+  return int(CurrentThreads()); // the encoder's --threads; the codestream does not depend on it
 }
 
 /** One encode at a target size of `components` planes of width x height samples, one after the other in

@@ -310,3 +310,25 @@ TEST(Encoder, SparesTheBilateralFilterWhenTheEngineWouldDropIStar)
   EXPECT_NE(used.Get().smoothed, used.Get().voxels);
   EXPECT_EQ(used.GetEstimatedSmoothedPSNR(), 0.0);
 }
+
+TEST(Encoder, SameFileWhateverTheNumberOfThreads)
+{
+  // Large enough that the rescans and the least-squares assembly split over threads (thousands of
+  // cells), with noise so that mode best uses I*, and a budget that leaves room for a residual layer.
+  auto         image = Phantom({ 56, 48, 40 });
+  std::mt19937 random(7);
+  for (itk::ImageRegionIteratorWithIndex<ImageType> it(image, image->GetBufferedRegion()); !it.IsAtEnd(); ++it)
+    it.Set(uint8_t(std::clamp(int(it.Get()) + int(random() % 41) - 20, 0, 255)));
+  dcv::EncoderOptions options;
+  options.bitsPerVoxel = 0.15;
+  options.threads = 1;
+  const auto one = itk::DCVEncode(image.GetPointer(), options);
+  EXPECT_GT(one.header.numberOfPoints, 1000u);
+  for (unsigned threads : { 2u, 3u, 0u })
+  {
+    options.threads = threads;
+    const auto r = itk::DCVEncode(image.GetPointer(), options);
+    EXPECT_EQ(r.bytes, one.bytes) << threads << " threads";
+    EXPECT_EQ(r.psnr, one.psnr) << threads << " threads";
+  }
+}

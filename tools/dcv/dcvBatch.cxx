@@ -588,7 +588,7 @@ Batch(const BatchOptions & b)
   }
   MethodOptions method = b.method;
   method.quiet = true; // the encoder's own progress line would fight the batch's
-  const EncoderOptions                         base = method.Checked("");
+  EncoderOptions                               base = method.Checked("");
   std::optional<std::pair<unsigned, unsigned>> shard;
   if (b.sharded)
   {
@@ -636,11 +636,12 @@ Batch(const BatchOptions & b)
   const unsigned cores = std::max(1u, std::thread::hardware_concurrency());
   unsigned       jobs = b.jobs == 0 ? cores : b.jobs;
   jobs = unsigned(std::max<std::size_t>(1, std::min<std::size_t>(jobs, items.size())));
-  if (jobs > 1)
+  if (base.threads == 0)
   {
-    // ITK's filters (the bilateral filter of I*) would otherwise start a thread per core in every job.
-    itk::MultiThreaderBase::SetGlobalDefaultNumberOfThreads(std::max(1u, cores / jobs));
+    base.threads = std::max(1u, cores / jobs); // the cores shared among the jobs
   }
+  // ITK's filters (the bilateral filter of I*) would otherwise start a thread per core in every job.
+  itk::MultiThreaderBase::SetGlobalDefaultNumberOfThreads(base.threads);
   // ITK's object factories are set up on first use; done here, before the workers race to it.
   itk::ObjectFactoryBase::GetRegisteredFactories();
   if (!b.method.quiet)

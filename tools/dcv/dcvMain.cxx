@@ -20,6 +20,7 @@
 #include "dcvCommand.h"
 
 #include "itkMacro.h"
+#include "itkMultiThreaderBase.h"
 
 #include <algorithm>
 #include <chrono>
@@ -44,6 +45,11 @@ MethodOptions::Checked(const std::string & label) const
     o.scale = { { scale[0], scale[1], scale[2] } };
   }
   o.progress = TerminalProgress(label, quiet);
+  if (o.threads > 0)
+  {
+    // ITK's filters before the encoder (the bilateral filter of I*) keep to the same number.
+    itk::MultiThreaderBase::SetGlobalDefaultNumberOfThreads(o.threads);
+  }
   try
   {
     o.mode = ParseMode(mode);
@@ -87,6 +93,9 @@ AddMethodOptions(CLI::App & command, std::string & input, MethodOptions & o)
       "--scale", o.scale, "Delaunay space per axis: SX,SY,SZ (integers 1 to 16), or 0,0,0: from the voxel spacing")
     ->delimiter(',')
     ->expected(3);
+  command.add_option("--threads", o.encoder.threads, "Threads to use (0: one per core); the file does not depend on it")
+    ->check(CLI::Range(0u, 1024u))
+    ->capture_default_str();
   command.add_flag("--force,-f", o.force, "Overwrite OUTPUT if it exists");
   command.add_flag("--quiet,-q", o.quiet, "Print nothing but errors");
 }

@@ -1,0 +1,73 @@
+/*=========================================================================
+ *
+ *  Copyright NumFOCUS
+ *
+ *  Licensed under the Apache License, Version 2.0 (the "License");
+ *  you may not use this file except in compliance with the License.
+ *  You may obtain a copy of the License at
+ *
+ *         http://www.apache.org/licenses/LICENSE-2.0.txt
+ *
+ *  Unless required by applicable law or agreed to in writing, software
+ *  distributed under the License is distributed on an "AS IS" BASIS,
+ *  WITHOUT WARRANTIES OR CONDITIONS OF ANY KIND, either express or implied.
+ *  See the License for the specific language governing permissions and
+ *  limitations under the License.
+ *
+ *=========================================================================*/
+#ifndef dcvParallel_h
+#define dcvParallel_h
+
+// Internal to the compiled sources: the one way the encoder spreads work over threads (TBB).
+#include <tbb/blocked_range.h>
+#include <tbb/parallel_for.h>
+#include <tbb/task_arena.h>
+
+#include <algorithm>
+#include <cstddef>
+
+namespace dcv
+{
+
+/** Calls f(i) for every i in [0, n) on the threads of the current task arena. Each f(i) must write only
+ * its own results: callers then combine them in index order, so that what they compute does not
+ * depend on the number of threads or on how the range was split. */
+template <typename F>
+void
+ParallelFor(std::size_t n, std::size_t grain, F && f)
+{
+  if (n <= grain)
+  {
+    for (std::size_t i = 0; i < n; ++i)
+    {
+      f(i);
+    }
+    return;
+  }
+  tbb::parallel_for(tbb::blocked_range<std::size_t>(0, n, grain), [&f](const tbb::blocked_range<std::size_t> & r) {
+    for (std::size_t i = r.begin(); i != r.end(); ++i)
+    {
+      f(i);
+    }
+  });
+}
+
+/** The number of threads ParallelFor uses here (that of the current task arena). */
+inline unsigned int
+CurrentThreads()
+{
+  return unsigned(std::max(1, tbb::this_task_arena::max_concurrency()));
+}
+
+/** Runs f with at most `threads` threads for the ParallelFor calls it makes (0: one per core). */
+template <typename F>
+decltype(auto)
+WithThreads(unsigned int threads, F && f)
+{
+  tbb::task_arena arena(threads == 0 ? tbb::task_arena::automatic : int(threads));
+  return arena.execute(f);
+}
+
+} // namespace dcv
+
+#endif
