@@ -46,9 +46,15 @@ DelaunayCompression_EXPORT Approximation
 DecodePayload(const std::vector<uint8_t> & payload, const GridSize & grid, uint32_t count, double q0, double q,
               const std::string & name, const GridScale & scale = { { 1, 1, 1 } });
 
+/** The spline of a parsed file alone: its points, values (dequantized) and tetrahedra, without the
+ * residual layer (voxels, not part of the mesh; `residual` is left empty). What a mesh export needs:
+ * nothing is rasterized. Throws FormatError naming the file when its payload is damaged. */
+DelaunayCompression_EXPORT Approximation
+DecodeMesh(const CompressedFile & file);
+
 /** The one "decode this file" function of every reader (ImageIO, MeshIO, ImageSource, the tools):
- * the points, values and tetrahedra of a parsed file, ready for Rasterize(). Throws FormatError naming
- * the file when its payload is damaged. */
+ * the points, values and tetrahedra of a parsed file (DecodeMesh) and its residual layer, ready for
+ * Rasterize(). Throws FormatError naming the file when its payload is damaged. */
 DelaunayCompression_EXPORT Approximation
 Decode(const CompressedFile & file);
 

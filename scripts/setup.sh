@@ -16,6 +16,8 @@ packages=(
   libdcmtk-dev            # DICOM series out; the tests edit copies of the dev series
   dicom3tools             # dciodvfy: the tests check every DICOM file written
   python3                 # the reference decoder of docs/format.md (dcvFormatSpecificationTest)
+  python3-vtk9            # VTK's readers check what dcv mesh writes (dcvMeshTest)
+  python3-numpy           # ... and probe it at the voxel centres
 )
 
 missing=()

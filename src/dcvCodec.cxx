@@ -196,11 +196,18 @@ DecodePayload(const std::vector<uint8_t> & payload, const GridSize & grid, uint3
 }
 
 Approximation
+DecodeMesh(const CompressedFile & file)
+{
+  const FileHeader & h = file.header;
+  return DecodePayload(
+    file.payload, h.size, h.numberOfPoints, h.quantizationOrigin, h.quantizationStep, file.name, h.scale);
+}
+
+Approximation
 Decode(const CompressedFile & file)
 {
   const FileHeader & h = file.header;
-  Approximation      a =
-    DecodePayload(file.payload, h.size, h.numberOfPoints, h.quantizationOrigin, h.quantizationStep, file.name, h.scale);
+  Approximation      a = DecodeMesh(file);
   if (h.residualStep > 0.0)
   {
     a.residual = { h.residualStep, DecodeResidualLayer(h.residualLayer, h.size, file.name) };

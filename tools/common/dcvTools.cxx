@@ -117,19 +117,7 @@ OpenVolume(const std::string & path, const std::string & series)
 void
 CheckOutput(const std::string & output, bool force, bool dcvFile)
 {
-  if (fs::exists(output) && !force)
-  {
-    throw Failure(Quoted(output) + " already exists; use --force to overwrite it");
-  }
-  if (fs::is_directory(output))
-  {
-    throw Failure(Quoted(output) + " is a directory");
-  }
-  const fs::path parent = fs::absolute(output).parent_path();
-  if (!fs::is_directory(parent))
-  {
-    throw Failure("cannot write " + Quoted(output) + ": directory " + Quoted(parent.string()) + " does not exist");
-  }
+  CheckOutputPath(output, force);
   if (dcvFile)
   {
     if (fs::path(output).extension() != ".dcv")
@@ -142,6 +130,24 @@ CheckOutput(const std::string & output, bool force, bool dcvFile)
     throw Failure("cannot write " + Quoted(output) +
                   ": no image format is known for that file name "
                   "(use .nrrd, .nii.gz, .mha, ...)");
+  }
+}
+
+void
+CheckOutputPath(const std::string & output, bool force)
+{
+  if (fs::exists(output) && !force)
+  {
+    throw Failure(Quoted(output) + " already exists; use --force to overwrite it");
+  }
+  if (fs::is_directory(output))
+  {
+    throw Failure(Quoted(output) + " is a directory");
+  }
+  const fs::path parent = fs::absolute(output).parent_path();
+  if (!fs::is_directory(parent))
+  {
+    throw Failure("cannot write " + Quoted(output) + ": directory " + Quoted(parent.string()) + " does not exist");
   }
 }
 

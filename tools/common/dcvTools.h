@@ -123,6 +123,11 @@ ReadVolume(const VolumeInput & v)
 void
 CheckOutput(const std::string & output, bool force, bool dcvFile = false);
 
+/** CheckOutput's checks of the path alone (an existing file unless forced, a directory, a missing
+ * directory), for outputs whose format the caller checks (meshes). */
+void
+CheckOutputPath(const std::string & output, bool force);
+
 /** Where a volume is written before it gets its name: a temporary file in the same directory for
  * formats that are one file, the name itself for those that are several (.mhd/.raw, .hdr/.img). */
 std::string
