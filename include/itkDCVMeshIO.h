@@ -30,7 +30,8 @@ namespace itk
  * \brief Reads and writes .dcv files (docs/format.md) as tetrahedral meshes.
  *
  * Reading (MeshFileReader) gives the Delaunay tetrahedralization of the file's points as tetrahedron
- * cells, the points in physical coordinates, and the vertex values as point data.
+ * cells, the points in physical coordinates, and the vertex values as point data: the spline. A file's
+ * residual layer (voxels, not a mesh) is not read here; DCVImageIO adds it to the image.
  *
  * Writing (MeshFileWriter) stores the points and their point data: the mesh's cells are not stored,
  * since a reader rebuilds them as the Delaunay tetrahedralization of the points. The IO must be told the

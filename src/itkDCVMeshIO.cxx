@@ -88,7 +88,7 @@ DCVMeshIO::Decode()
   {
     const dcv::CompressedFile file = dcv::ReadCompressedFile(m_FileName);
     m_Header = file.header;
-    a = dcv::Decode(file);
+    a = dcv::DecodeMesh(file); // the spline: a residual layer is voxels, not part of a mesh
   }
   catch (const dcv::FormatError & e)
   {
