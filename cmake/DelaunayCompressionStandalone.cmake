@@ -28,6 +28,7 @@ set(CMAKE_INSTALL_RPATH_USE_LINK_PATH ON)
 
 add_subdirectory(src)
 add_subdirectory(tools)
+add_subdirectory(slicer) # the 3D Slicer CLI modules
 if(BUILD_TESTING)
   enable_testing()
   add_subdirectory(test)

@@ -11,7 +11,9 @@ packages=(
   libopenjp2-7-dev        # JPEG 2000 of the residual layer
   libopenjp2-tools        # opj_decompress: the reference decoder's residual layer
   libtbb-dev              # the encoder's threads (oneTBB)
-  libcli11-dev            # dcv's arguments
+  libcli11-dev            # dcv's arguments, and those of the Slicer modules
+  libexpat1-dev           # the Slicer modules read their own module description (XML)
+  libxml2-utils           # xmllint: the tests validate the Slicer module descriptions against the schema
   libgtest-dev            # tests
   libdcmtk-dev            # DICOM series out; the tests edit copies of the dev series
   dicom3tools             # dciodvfy: the tests check every DICOM file written

@@ -203,6 +203,16 @@ FinishOutput(const std::string & temporary, const std::string & output, bool fai
   }
 }
 
+CompressedFile
+ParseCompressedBytes(const std::vector<uint8_t> & bytes, const std::string & name)
+{
+  CompressedFile file;
+  file.name = name;
+  file.size = bytes.size();
+  ParseFile(bytes, file.name, file.header, file.payload);
+  return file;
+}
+
 std::function<void(double)>
 TerminalProgress(const std::string & label, bool quiet)
 {

@@ -21,6 +21,7 @@
 // The layer every program of the project shares (dcv, the benchmarks, and the DICOM, batch and Slicer
 // tools to come): user-facing errors, reading any volume ITK reads, dispatch on its pixel type,
 // atomic outputs, and progress on a terminal.
+#include "dcvCodec.h"
 #include "dcvFileFormat.h"
 #include "itkDCVImageInformation.h"
 #include "itkImageFileReader.h"
@@ -158,6 +159,35 @@ WriteVolume(const TImage * image, const std::string & output)
     throw Failure("cannot write " + Quoted(output) + ": " + e.GetDescription());
   }
   FinishOutput(temporary, output, false);
+}
+
+/** Parses the bytes of a whole .dcv file made in memory, as ReadCompressedFile() parses a file (FormatError
+ * starting with `name` otherwise). */
+CompressedFile
+ParseCompressedBytes(const std::vector<uint8_t> & bytes, const std::string & name);
+
+/** Decodes a parsed .dcv file as every reader does (Decode, then Rasterize: rounded and clamped to T) into
+ * an itk::Image of pixel type T with the file's geometry. */
+template <typename T>
+typename itk::Image<T, 3>::Pointer
+DecodeImage(const CompressedFile & file)
+{
+  const Approximation a = Decode(file);
+  auto                image = itk::Image<T, 3>::New();
+  itk::CopyDCVGeometry(file.header, image.GetPointer());
+  image->SetBufferedRegion(image->GetLargestPossibleRegion());
+  image->Allocate();
+  Rasterize(a, image->GetBufferPointer());
+  return image;
+}
+
+/** Calls f(image) with the file decoded in its own pixel type (DecodeImage): what `dcv decompress`
+ * writes. */
+template <typename TFunction>
+void
+DecodeVolume(const CompressedFile & file, TFunction && f)
+{
+  VisitPixelType(file.header.pixelType, [&](auto pixel) { f(DecodeImage<decltype(pixel)>(file)); });
 }
 
 /** A progress function that shows "label NN%" on stderr when it is a terminal (and not `quiet`);

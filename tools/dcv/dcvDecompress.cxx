@@ -43,14 +43,8 @@ Decompress(const DecompressOptions & d)
   {
     CheckOutput(d.output, d.force);
   }
-  const auto          start = std::chrono::steady_clock::now();
-  const Approximation a = Decode(file);
-  VisitPixelType(file.header.pixelType, [&](auto pixel) {
-    auto image = itk::Image<decltype(pixel), 3>::New();
-    itk::CopyDCVGeometry(file.header, image.GetPointer());
-    image->SetBufferedRegion(image->GetLargestPossibleRegion());
-    image->Allocate();
-    Rasterize(a, image->GetBufferPointer());
+  const auto start = std::chrono::steady_clock::now();
+  DecodeVolume(file, [&](auto image) {
     if (!d.dicom)
     {
       WriteVolume(image.GetPointer(), d.output);
