@@ -69,6 +69,12 @@ Compress(const CompressOptions & c)
               << "scale: " << r.header.scale[0] << " " << r.header.scale[1] << " " << r.header.scale[2] << "\n"
               << "PSNR: " << r.psnr << " dB\n"
               << "seconds: " << SecondsSince(start) << "\n";
+    const auto & t = r.timings;
+    std::cout << "seconds by stage: smoothing " << t.smoothing << ", refinement " << t.refinement << ", decimation "
+              << t.decimation << ", least squares " << t.leastSquares << ", residual layer " << t.residualLayer
+              << ", other "
+              << std::max(0.0, t.total - t.smoothing - t.refinement - t.decimation - t.leastSquares - t.residualLayer)
+              << " (rate control's coding, the PSNR)\n";
   }
 }
 
