@@ -36,9 +36,12 @@
 namespace dcv
 {
 
-/** Codes the points and values of `a` (values must be q0 + k q with integer k, |k| < 2^30). */
+/** Codes the points and values of `a` (values must be q0 + k q with integer k, |k| < 2^30). The value
+ * prediction needs the Delaunay tetrahedralization of the points, as the decoder rebuilds it: it is
+ * computed here, unless `delaunay` says that a.tetrahedra already is it (the engine's mesh: unique
+ * for the points and a.scale), which spares the encoder a tetrahedralization per rate-control step. */
 DelaunayCompression_EXPORT std::vector<uint8_t>
-                           EncodePayload(const Approximation & a, double q0, double q);
+                           EncodePayload(const Approximation & a, double q0, double q, bool delaunay = false);
 
 /** Decodes `count` points and their values, with the tetrahedra over them, ready for Rasterize().
  * Throws FormatError starting with `name` when the payload is truncated or damaged. */

@@ -104,25 +104,28 @@ public:
 } // namespace
 
 std::vector<uint8_t>
-EncodePayload(const Approximation & a, double q0, double q)
+EncodePayload(const Approximation & a, double q0, double q, bool delaunay)
 {
   if (!(q > 0.0))
   {
     throw std::invalid_argument("EncodePayload: the quantization step must be positive");
   }
-  // Values follow the points in the coder's order.
-  std::unordered_map<uint64_t, double> valueAt;
-  valueAt.reserve(a.points.size());
+  // Values follow the points in the coder's order: `sorted[i]` is the position there of a.points[i].
+  std::unordered_map<uint64_t, uint32_t> indexAt;
+  indexAt.reserve(a.points.size());
   for (std::size_t i = 0; i < a.points.size(); ++i)
   {
-    valueAt[a.grid.Offset(a.points[i][0], a.points[i][1], a.points[i][2])] = a.values[i];
+    indexAt[a.grid.Offset(a.points[i][0], a.points[i][1], a.points[i][2])] = uint32_t(i);
   }
   std::vector<GridPoint> points = a.points;
   SortPositions(a.grid, points);
-  std::vector<int64_t> k(points.size());
+  std::vector<uint32_t> sorted(points.size());
+  std::vector<int64_t>  k(points.size());
   for (std::size_t i = 0; i < points.size(); ++i)
   {
-    const double v = valueAt.at(a.grid.Offset(points[i][0], points[i][1], points[i][2]));
+    const uint32_t original = indexAt.at(a.grid.Offset(points[i][0], points[i][1], points[i][2]));
+    sorted[original] = uint32_t(i);
+    const double v = a.values[original];
     const double index = std::round((v - q0) / q);
     if (std::abs(index - (v - q0) / q) > 1e-6 || std::abs(index) >= double(1 << 30))
     {
@@ -130,7 +133,20 @@ EncodePayload(const Approximation & a, double q0, double q)
     }
     k[i] = int64_t(index);
   }
-  const Adjacency      adjacency(points.size(), Tetrahedralize(points, a.scale));
+  std::vector<Tetrahedron> tetrahedra;
+  if (delaunay)
+  {
+    tetrahedra.reserve(a.tetrahedra.size());
+    for (const auto & t : a.tetrahedra)
+    {
+      tetrahedra.push_back({ sorted[t[0]], sorted[t[1]], sorted[t[2]], sorted[t[3]] });
+    }
+  }
+  else
+  {
+    tetrahedra = Tetrahedralize(points, a.scale);
+  }
+  const Adjacency      adjacency(points.size(), tetrahedra);
   std::vector<uint8_t> bytes;
   ArithmeticEncoder    encoder(bytes);
   EncodePositions(encoder, a.grid, points);

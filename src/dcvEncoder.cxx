@@ -350,7 +350,7 @@ Run(const EncoderInput & input, const EncoderOptions & o, bool coded, std::vecto
   r.approximation = engine.GetApproximation();
   if (coded && payload.empty())
   {
-    payload = EncodePayload(r.approximation, parameters.quantizationOrigin, r.quantizationStep);
+    payload = EncodePayload(r.approximation, parameters.quantizationOrigin, r.quantizationStep, true);
   }
   r.squaredError = engine.GetSquaredError();
   r.smoothedPSNR = engine.GetSmoothedPSNR();

@@ -52,7 +52,7 @@ ApproximateToBudget(RefinementEngine & engine, std::size_t payloadBytes, double 
   // (size, squared error) of encoded states.
   std::vector<std::pair<double, double>> states;
   auto                                   encode = [&] {
-    result.payload = EncodePayload(engine.GetApproximation(), q0, engine.GetParameters().quantizationStep);
+    result.payload = EncodePayload(engine.GetApproximation(), q0, engine.GetParameters().quantizationStep, true);
     states.emplace_back(double(result.payload.size()), engine.GetSquaredError());
   };
 
@@ -261,7 +261,7 @@ ApproximateToQuality(RefinementEngine & engine, double squaredError, double q0,
       }
     }
   }
-  result.payload = EncodePayload(engine.GetApproximation(), q0, step);
+  result.payload = EncodePayload(engine.GetApproximation(), q0, step, true);
   if (progress)
     progress(1.0);
   return result;
