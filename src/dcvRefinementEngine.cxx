@@ -160,6 +160,9 @@ struct RefinementEngine::Impl
   std::priority_queue<HeapEntry> byVoxelError; // MaxErrorPosition
 
   std::vector<uint64_t> isVertex; // one bit per voxel
+  uint64_t              meshVersion{ 0 };     // counts insertions and removals
+  uint64_t              solvedMesh{ ~uint64_t(0) }; // the mesh version `solved` belongs to
+  std::vector<double>   solved;               // least-squares values per vertex id (unquantized)
   double                squaredError{ 0.0 };
   uint64_t              step{ 0 };
 
@@ -230,6 +233,7 @@ struct RefinementEngine::Impl
   {
     const uint64_t voxel = grid.Offset(p[0], p[1], p[2]);
     const auto     id = mesh.Insert(p, hint, killed, created);
+    ++meshVersion;
     if (values.size() <= id)
     {
       const std::size_t n = std::max<std::size_t>(id + 1, values.size() * 2);
@@ -554,6 +558,7 @@ struct RefinementEngine::Impl
     }
     const GridPoint p = mesh.Point(v);
     mesh.Remove(v, killed, created);
+    ++meshVersion;
     vertexAlive[v] = 0;
     SetVertex(grid.Offset(p[0], p[1], p[2]), false);
     Kill(killed);
@@ -796,100 +801,114 @@ double
 RefinementEngine::OptimizeValues()
 {
   Impl &     d = *m_Impl;
-  const auto cells = d.mesh.FiniteCells();
-  // Compact indices of the live vertices.
-  std::vector<int> index(d.mesh.NumberOfVertexIds(), -1);
-  int              n = 0;
-  for (VertexId v = 0; v < index.size(); ++v)
+  // The solution depends on the mesh and the image only: the step trials of rate control, which
+  // requantize the values on one mesh, reuse it.
+  if (d.solvedMesh != d.meshVersion)
   {
-    if (d.vertexAlive[v])
+    const auto cells = d.mesh.FiniteCells();
+    // Compact indices of the live vertices.
+    std::vector<int> index(d.mesh.NumberOfVertexIds(), -1);
+    int              n = 0;
+    for (VertexId v = 0; v < index.size(); ++v)
     {
-      index[v] = n++;
-    }
-  }
-  // Normal equations of min sum_x (I(x) - sum_k v_k phi_k(x))^2: M_jk = sum phi_j phi_k, b_j = sum I phi_j.
-  // Each cell's 4x4 block on a thread into its own 16 triplets and 4 right-hand-side terms; b is summed
-  // in cell order (setFromTriplets sums duplicates in triplet order).
-  std::vector<Eigen::Triplet<double>> triplets(cells.size() * 16);
-  std::vector<std::array<double, 4>>  rhs(cells.size());
-  const auto                          order = d.SpatialOrder(cells);
-  ParallelFor(cells.size(), 64, [&](std::size_t k) {
-    const std::size_t        i = order[k];
-    const auto &             c = cells[i];
-    std::array<GridPoint, 4> p;
-    for (int k = 0; k < 4; ++k)
-    {
-      p[k] = d.mesh.Point(c.vertices[k]);
-    }
-    std::array<LinearFunction, 3> phi;
-    for (int k = 0; k < 3; ++k)
-    {
-      std::array<double, 4> unit{ 0, 0, 0, 0 };
-      unit[k] = 1.0;
-      phi[k] = LinearFunction(CanonicalTetrahedron(p, unit));
-    }
-    double m[4][4] = {};
-    double r[4] = {};
-    ForEachSpan(d.grid, p, [&](int32_t y, int32_t z, int32_t x0, int32_t x1) {
-      const float * row = d.image + d.grid.Offset(0, y, z);
-      for (int32_t x = x0; x <= x1; ++x)
+      if (d.vertexAlive[v])
       {
-        double w[4];
-        w[0] = phi[0](x, y, z);
-        w[1] = phi[1](x, y, z);
-        w[2] = phi[2](x, y, z);
-        w[3] = 1.0 - w[0] - w[1] - w[2];
-        for (int j = 0; j < 4; ++j)
+        index[v] = n++;
+      }
+    }
+    // Normal equations of min sum_x (I(x) - sum_k v_k phi_k(x))^2: M_jk = sum phi_j phi_k, b_j = sum I phi_j.
+    // Each cell's 4x4 block on a thread into its own 16 triplets and 4 right-hand-side terms; b is summed
+    // in cell order (setFromTriplets sums duplicates in triplet order).
+    std::vector<Eigen::Triplet<double>> triplets(cells.size() * 16);
+    std::vector<std::array<double, 4>>  rhs(cells.size());
+    const auto                          order = d.SpatialOrder(cells);
+    ParallelFor(cells.size(), 64, [&](std::size_t o) {
+      const std::size_t        i = order[o];
+      const auto &             c = cells[i];
+      std::array<GridPoint, 4> p;
+      for (int k = 0; k < 4; ++k)
+      {
+        p[k] = d.mesh.Point(c.vertices[k]);
+      }
+      std::array<LinearFunction, 3> phi;
+      for (int k = 0; k < 3; ++k)
+      {
+        std::array<double, 4> unit{ 0, 0, 0, 0 };
+        unit[k] = 1.0;
+        phi[k] = LinearFunction(CanonicalTetrahedron(p, unit));
+      }
+      double m[4][4] = {};
+      double r[4] = {};
+      ForEachSpan(d.grid, p, [&](int32_t y, int32_t z, int32_t x0, int32_t x1) {
+        const float * row = d.image + d.grid.Offset(0, y, z);
+        for (int32_t x = x0; x <= x1; ++x)
         {
-          r[j] += w[j] * double(row[x]);
-          for (int k = j; k < 4; ++k)
+          double w[4];
+          w[0] = phi[0](x, y, z);
+          w[1] = phi[1](x, y, z);
+          w[2] = phi[2](x, y, z);
+          w[3] = 1.0 - w[0] - w[1] - w[2];
+          for (int j = 0; j < 4; ++j)
           {
-            m[j][k] += w[j] * w[k];
+            r[j] += w[j] * double(row[x]);
+            for (int k = j; k < 4; ++k)
+            {
+              m[j][k] += w[j] * w[k];
+            }
           }
+        }
+      });
+      for (int j = 0; j < 4; ++j)
+      {
+        rhs[i][j] = r[j];
+        for (int k = 0; k < 4; ++k)
+        {
+          triplets[16 * i + 4 * j + k] =
+            Eigen::Triplet<double>(index[c.vertices[j]], index[c.vertices[k]], j <= k ? m[j][k] : m[k][j]);
         }
       }
     });
-    for (int j = 0; j < 4; ++j)
+    Eigen::VectorXd b = Eigen::VectorXd::Zero(n);
+    for (std::size_t i = 0; i < cells.size(); ++i)
     {
-      rhs[i][j] = r[j];
-      for (int k = 0; k < 4; ++k)
+      for (int j = 0; j < 4; ++j)
       {
-        triplets[16 * i + 4 * j + k] =
-          Eigen::Triplet<double>(index[c.vertices[j]], index[c.vertices[k]], j <= k ? m[j][k] : m[k][j]);
+        b[index[cells[i].vertices[j]]] += rhs[i][j];
       }
     }
-  });
-  Eigen::VectorXd b = Eigen::VectorXd::Zero(n);
-  for (std::size_t i = 0; i < cells.size(); ++i)
-  {
-    for (int j = 0; j < 4; ++j)
+    Eigen::SparseMatrix<double> M(n, n);
+    M.setFromTriplets(triplets.begin(), triplets.end());
+    Eigen::VectorXd current(n);
+    for (VertexId v = 0; v < index.size(); ++v)
     {
-      b[index[cells[i].vertices[j]]] += rhs[i][j];
+      if (index[v] >= 0)
+      {
+        current[index[v]] = d.values[v];
+      }
     }
-  }
-  Eigen::SparseMatrix<double> M(n, n);
-  M.setFromTriplets(triplets.begin(), triplets.end());
-  Eigen::VectorXd current(n);
-  for (VertexId v = 0; v < index.size(); ++v)
-  {
-    if (index[v] >= 0)
-    {
-      current[index[v]] = d.values[v];
-    }
-  }
-  Eigen::ConjugateGradient<Eigen::SparseMatrix<double>, Eigen::Lower | Eigen::Upper> solver;
-  solver.setTolerance(1e-10);
-  solver.setMaxIterations(2000);
-  solver.compute(M);
-  const Eigen::VectorXd solution = solver.solveWithGuess(b, current);
+    Eigen::ConjugateGradient<Eigen::SparseMatrix<double>, Eigen::Lower | Eigen::Upper> solver;
+    solver.setTolerance(1e-10);
+    solver.setMaxIterations(2000);
+    solver.compute(M);
+    const Eigen::VectorXd solution = solver.solveWithGuess(b, current);
 
+    d.solved.assign(index.size(), std::numeric_limits<double>::quiet_NaN());
+    for (VertexId v = 0; v < index.size(); ++v)
+    {
+      if (index[v] >= 0)
+      {
+        d.solved[v] = solution[index[v]];
+      }
+    }
+    d.solvedMesh = d.meshVersion;
+  }
   const std::vector<double> old = d.values;
   const double              before = d.squaredError;
-  for (VertexId v = 0; v < index.size(); ++v)
+  for (VertexId v = 0; v < d.solved.size(); ++v)
   {
-    if (index[v] >= 0 && std::isfinite(solution[index[v]]))
+    if (d.vertexAlive[v] && std::isfinite(d.solved[v]))
     {
-      d.values[v] = d.Quantize(std::clamp(solution[index[v]], d.parameters.valueMin, d.parameters.valueMax));
+      d.values[v] = d.Quantize(std::clamp(d.solved[v], d.parameters.valueMin, d.parameters.valueMax));
     }
   }
   d.RescanAll();
