@@ -19,6 +19,8 @@
 #define dcvWrappingCheck_h
 
 // Helpers of the C++ files that cmake/DelaunayCompressionWrappingCheck.cmake generates from wrapping/.
+#include "itkSmartPointer.h"
+
 #include <cstdlib>
 #include <cstring>
 #include <iostream>
@@ -31,8 +33,9 @@ namespace dcvWrappingCheck
 template <typename T, typename = void>
 struct HasNew : std::false_type
 {};
+// Its own New() (itkNewMacro), not one inherited from a superclass (ImageToMeshFilter has MeshSource's).
 template <typename T>
-struct HasNew<T, std::void_t<decltype(T::New())>> : std::true_type
+struct HasNew<T, std::void_t<decltype(T::New())>> : std::is_same<decltype(T::New()), itk::SmartPointer<T>>
 {};
 
 /** Creates a wrapped class as Python's New() would, and checks the name it reports (itkTypeMacro),
