@@ -51,8 +51,7 @@ main(int argc, char * argv[])
     const long                  last = std::stol(argv[4]);
     if (first < 0 || last < first || last >= long(whole.GetSize(2)))
     {
-      std::cerr << "slices " << first << " to " << last << " are not within 0 to " << whole.GetSize(2) - 1
-                << std::endl;
+      std::cerr << "slices " << first << " to " << last << " are not within 0 to " << whole.GetSize(2) - 1 << std::endl;
       return EXIT_FAILURE;
     }
 

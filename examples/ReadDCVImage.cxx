@@ -50,8 +50,9 @@ main(int argc, char * argv[])
     }
     io->SetFileName(argv[1]);
     io->ReadImageInformation();
-    std::cout << "IO: " << io->GetNameOfClass() << "\nstored pixel type: "
-              << itk::ImageIOBase::GetComponentTypeAsString(io->GetComponentType()) << "\nsize:";
+    std::cout << "IO: " << io->GetNameOfClass()
+              << "\nstored pixel type: " << itk::ImageIOBase::GetComponentTypeAsString(io->GetComponentType())
+              << "\nsize:";
     for (unsigned int d = 0; d < io->GetNumberOfDimensions(); ++d)
     {
       std::cout << ' ' << io->GetDimensions(d);

@@ -15,18 +15,17 @@
  *  limitations under the License.
  *
  *=========================================================================*/
-// Reads a .dcv file as a tetrahedral mesh with itk::MeshFileReader, without decoding a voxel, and
-// optionally writes the mesh in another format ITK writes (.vtk for ParaView):
+// Reads a .dcv file as a tetrahedral mesh with itk::MeshFileReader, without decoding a voxel:
 //
-//   ReadDCVMesh INPUT.dcv [OUTPUT.vtk]
+//   ReadDCVMesh INPUT.dcv
 //
 // The mesh is the spline itself: the significant points in physical coordinates, their values as point
 // data, and the Delaunay tetrahedra as cells. (A file's residual layer holds voxels, not a mesh; it is
 // read with the image, see ReadDCVImage.) The package registers its MeshIO in every program that links
-// it, so the reader finds it by itself.
+// it, so the reader finds it by itself. (ITK 5.2's VTK mesh writer has no tetrahedra: for ParaView,
+// `dcv mesh INPUT.dcv OUTPUT.vtu` writes the same mesh.)
 #include "itkMesh.h"
 #include "itkMeshFileReader.h"
-#include "itkMeshFileWriter.h"
 
 #include <algorithm>
 #include <iostream>
@@ -35,9 +34,9 @@
 int
 main(int argc, char * argv[])
 {
-  if (argc != 2 && argc != 3)
+  if (argc != 2)
   {
-    std::cerr << "Usage: " << argv[0] << " INPUT.dcv [OUTPUT.vtk]" << std::endl;
+    std::cerr << "Usage: " << argv[0] << " INPUT.dcv" << std::endl;
     return EXIT_FAILURE;
   }
   // float point data with 3D points: the mesh type DelaunayApproximationImageToMeshFilter makes.
@@ -65,14 +64,6 @@ main(int argc, char * argv[])
       std::cout << ' ' << b;
     }
     std::cout << std::endl;
-
-    if (argc == 3)
-    {
-      auto writer = itk::MeshFileWriter<MeshType>::New();
-      writer->SetInput(mesh);
-      writer->SetFileName(argv[2]);
-      writer->Update();
-    }
   }
   catch (const itk::ExceptionObject & e)
   {

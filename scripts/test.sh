@@ -16,4 +16,4 @@ build/examples/ApproximateVolume build/examples/run/phantom.nrrd build/examples/
 build/examples/WriteReadDCV build/examples/run/phantom.nrrd build/examples/run/phantom.dcv 0.125
 build/examples/ReadDCVImage build/examples/run/phantom.dcv build/examples/run/phantom-decoded.nrrd
 build/examples/DecodeDCVRegion build/examples/run/phantom.dcv build/examples/run/slab.nrrd 20 27
-build/examples/ReadDCVMesh build/examples/run/phantom.dcv build/examples/run/phantom-mesh.vtk
+build/examples/ReadDCVMesh build/examples/run/phantom.dcv
