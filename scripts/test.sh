@@ -14,3 +14,6 @@ mkdir -p build/examples/run
 build/tools/dcv/dcv phantom build/examples/run/phantom.nrrd --size 48 --force
 build/examples/ApproximateVolume build/examples/run/phantom.nrrd build/examples/run/approximation.nrrd 2000
 build/examples/WriteReadDCV build/examples/run/phantom.nrrd build/examples/run/phantom.dcv 0.125
+build/examples/ReadDCVImage build/examples/run/phantom.dcv build/examples/run/phantom-decoded.nrrd
+build/examples/DecodeDCVRegion build/examples/run/phantom.dcv build/examples/run/slab.nrrd 20 27
+build/examples/ReadDCVMesh build/examples/run/phantom.dcv
