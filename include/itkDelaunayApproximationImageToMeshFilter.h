@@ -130,7 +130,16 @@ public:
 
   /** Per-axis scale of the space the tetrahedralization is Delaunay in (default 0, 0, 0: from the
    * input's spacing, dcv::AutomaticScale; else 1 to 16 per axis). */
-  itkSetMacro(Scale, dcv::GridScale);
+  // Not itkSetMacro: its debug message would print a std::array, which has no operator<<.
+  virtual void
+  SetScale(const dcv::GridScale & scale)
+  {
+    if (m_Scale != scale)
+    {
+      m_Scale = scale;
+      this->Modified();
+    }
+  }
   itkGetConstReferenceMacro(Scale, dcv::GridScale);
   /** The scale the last Update() used. */
   itkGetConstReferenceMacro(ChosenScale, dcv::GridScale);
