@@ -168,7 +168,8 @@ struct RefinementEngine::Impl
 
   std::vector<Tetrahedralization::CellId> killed;
   std::vector<Tetrahedralization::Cell>   created;
-  std::vector<CellScan>                   scans; // of the created cells
+  std::vector<CellScan>                   scans;     // of the created cells
+  std::vector<std::array<double, 2>>      valueSums; // of the created cells, for ChooseValue
 
   bool
   IsVertex(uint64_t voxel) const
@@ -275,7 +276,8 @@ struct RefinementEngine::Impl
     // Over the new cells the error is sum (r - w v)^2 = C - 2 v B + v^2 A, with w the new vertex's
     // barycentric weight and r the residual with v = 0: one pass gives A and B for every candidate.
     // Per cell, then summed in order: the same doubles whether cells ran on one thread or several.
-    std::vector<std::array<double, 2>> sums(created.size());
+    std::vector<std::array<double, 2>> & sums = valueSums;
+    sums.resize(created.size());
     OverCreated([&](std::size_t i) {
       const auto &             c = created[i];
       std::array<GridPoint, 4> p;
@@ -338,8 +340,6 @@ struct RefinementEngine::Impl
       cellAlive.resize(n);
     }
   }
-
-
 
   // Reads only: cells can be scanned on several threads at once.
   CellScan
