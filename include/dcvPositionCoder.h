@@ -57,7 +57,8 @@ DelaunayCompression_EXPORT void
 EncodePositions(ArithmeticEncoder & encoder, const GridSize & grid, std::vector<GridPoint> points);
 
 /** Decodes `count` points coded by EncodePositions(), in coding order. Throws
- * std::invalid_argument when `count` exceeds the number of voxels of `grid`. */
+ * std::invalid_argument when `count` exceeds the number of voxels of `grid`. Stops as soon as the
+ * decoder is overrun (decoder.Overrun(): the stream is damaged), with fewer than `count` points. */
 DelaunayCompression_EXPORT std::vector<GridPoint>
                            DecodePositions(ArithmeticDecoder & decoder, const GridSize & grid, uint32_t count);
 
