@@ -45,7 +45,8 @@
  * caller that needs to store data per point in the same order.
  *
  * The number of points is not part of the stream (the caller stores it). Any bit stream decodes to
- * `count` distinct points of the grid, so a corrupt stream cannot produce invalid geometry.
+ * `count` distinct points of the grid (fewer when it runs out first: decoding stops there), so a corrupt
+ * stream cannot produce invalid geometry.
  * \ingroup DelaunayCompression
  */
 namespace dcv
