@@ -44,22 +44,26 @@ DelaunayCompression_EXPORT std::vector<uint8_t>
                            EncodePayload(const Approximation & a, double q0, double q, bool delaunay = false);
 
 /** Decodes `count` points and their values, with the tetrahedra over them, ready for Rasterize().
- * Throws FormatError starting with `name` when the payload is truncated or damaged. */
+ * Throws FormatError starting with `name` when the payload is truncated or damaged: at once when `count`
+ * exceeds what the payload can hold (MaximumPointsPerPayloadByte), and as soon as the stream runs past
+ * its end (a correct stream never does), not after decoding all `count` points. */
 DelaunayCompression_EXPORT Approximation
 DecodePayload(const std::vector<uint8_t> & payload, const GridSize & grid, uint32_t count, double q0, double q,
               const std::string & name, const GridScale & scale = { { 1, 1, 1 } });
 
 /** The spline of a parsed file alone: its points, values (dequantized) and tetrahedra, without the
  * residual layer (voxels, not part of the mesh; `residual` is left empty). What a mesh export needs:
- * nothing is rasterized. Throws FormatError naming the file when its payload is damaged. */
+ * nothing is rasterized. Throws FormatError naming the file when its payload is damaged, or, before
+ * anything is allocated, when the mesh would need more memory than `limits` allow (CheckDecodingMemory). */
 DelaunayCompression_EXPORT Approximation
-DecodeMesh(const CompressedFile & file);
+DecodeMesh(const CompressedFile & file, const DecodeLimits & limits = DecodeLimits());
 
 /** The one "decode this file" function of every reader (ImageIO, MeshIO, ImageSource, the tools):
  * the points, values and tetrahedra of a parsed file (DecodeMesh) and its residual layer, ready for
- * Rasterize(). Throws FormatError naming the file when its payload is damaged. */
+ * Rasterize(). Throws FormatError naming the file when its payload is damaged, or, before anything is
+ * allocated, when the mesh and the volume would need more memory than `limits` allow. */
 DelaunayCompression_EXPORT Approximation
-Decode(const CompressedFile & file);
+Decode(const CompressedFile & file, const DecodeLimits & limits = DecodeLimits());
 
 } // namespace dcv
 

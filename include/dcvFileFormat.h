@@ -158,6 +158,49 @@ struct CompressedFile
   std::size_t          size{ 0 }; // bytes of the whole file
 };
 
+/** A payload of L bytes codes at most MaximumPointsPerPayloadByte x L points, so that ParseFile() refuses
+ * a larger point count before anything is decoded. Why: every point's value starts with one adaptive
+ * decision (the zero flag of its residual model, maximum shift 5), whose probability stays within
+ * [31, 65505] / 2^16 whatever the stream; each decision therefore divides the decoder's range by at least
+ * 65536 / 65505, i.e. costs at least 6.825e-4 bits, and a stream that is not overrun reads at most L bytes:
+ * n <= 8 L / 6.825e-4 < 11722 L. 11728 L leaves a margin (docs/format.md, "Resource limits"). */
+constexpr uint64_t MaximumPointsPerPayloadByte = 11728;
+
+/** What decoding may use by default: half of the machine's physical memory (4 GiB where it is unknown). */
+DelaunayCompression_EXPORT uint64_t
+DefaultMaximumMemory();
+
+/** Limits on what a file may make the decoder allocate, checked against what its header implies before
+ * anything is allocated from it (CheckDecodingMemory()). */
+struct DecodeLimits
+{
+  /** Bytes that decoding a file may need (DecodingMemory()); 0: no limit. */
+  uint64_t maximumMemory{ DefaultMaximumMemory() };
+};
+
+/** What a decoder builds from a file: the mesh alone (points, values, tetrahedra) or the volume too. */
+enum class DecodeOutput
+{
+  Mesh,
+  Volume
+};
+
+/** An estimate (from above) of the peak memory that decoding a file with this header needs: about 1 KiB per
+ * point (the points, CGAL's triangulation, the tetrahedra, the neighbour table) and, for a volume, the
+ * voxels of its pixel type plus 16 bytes per voxel with a residual layer (its samples and OpenJPEG's). */
+DelaunayCompression_EXPORT uint64_t
+DecodingMemory(const FileHeader & header, DecodeOutput output);
+
+/** Throws FormatError starting with `name` (what it would need, and the limit) when DecodingMemory()
+ * exceeds limits.maximumMemory. */
+DelaunayCompression_EXPORT void
+CheckDecodingMemory(const FileHeader & header, const std::string & name, DecodeOutput output,
+                    const DecodeLimits & limits);
+
+/** "1.5 GiB": a byte count for messages. */
+DelaunayCompression_EXPORT std::string
+FormatByteCount(uint64_t bytes);
+
 /** Reads and parses a whole file, once (FormatError naming it when it cannot be read or parsed). */
 DelaunayCompression_EXPORT CompressedFile
 ReadCompressedFile(const std::string & path);

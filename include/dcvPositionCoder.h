@@ -45,7 +45,8 @@
  * caller that needs to store data per point in the same order.
  *
  * The number of points is not part of the stream (the caller stores it). Any bit stream decodes to
- * `count` distinct points of the grid, so a corrupt stream cannot produce invalid geometry.
+ * `count` distinct points of the grid (fewer when it runs out first: decoding stops there), so a corrupt
+ * stream cannot produce invalid geometry.
  * \ingroup DelaunayCompression
  */
 namespace dcv
@@ -57,7 +58,8 @@ DelaunayCompression_EXPORT void
 EncodePositions(ArithmeticEncoder & encoder, const GridSize & grid, std::vector<GridPoint> points);
 
 /** Decodes `count` points coded by EncodePositions(), in coding order. Throws
- * std::invalid_argument when `count` exceeds the number of voxels of `grid`. */
+ * std::invalid_argument when `count` exceeds the number of voxels of `grid`. Stops as soon as the
+ * decoder is overrun (decoder.Overrun(): the stream is damaged), with fewer than `count` points. */
 DelaunayCompression_EXPORT std::vector<GridPoint>
                            DecodePositions(ArithmeticDecoder & decoder, const GridSize & grid, uint32_t count);
 

@@ -43,6 +43,11 @@ namespace itk
  * UseCompression and CompressionLevel have no effect: a .dcv file is always compressed.
  * 8, 16 and 32-bit integer, float and double scalar 3D images are written; others are refused.
  *
+ * MaximumMemory (bytes; default dcv::DefaultMaximumMemory(), half of the physical memory; 0: no limit):
+ * ReadImageInformation() refuses a file whose decoding would need more (dcv::DecodingMemory(): the
+ * voxels, the points and their tetrahedra), before the image or anything else is allocated, as `dcv
+ * decompress --max-memory`.
+ *
  * A file is recognised by its extension (.dcv) and its magic bytes.
  * \ingroup DelaunayCompression
  */
@@ -95,6 +100,10 @@ public:
   {
     return m_Options.quantizationStep;
   }
+  /** Reading: the most memory (bytes) that decoding a file may need; 0: no limit. */
+  itkSetMacro(MaximumMemory, uint64_t);
+  itkGetConstMacro(MaximumMemory, uint64_t);
+
   /** All the encoder's options at once (metadata and method parameters included). */
   void
   SetEncoderOptions(const dcv::EncoderOptions & options);
@@ -136,6 +145,7 @@ private:
   dcv::EncoderOptions m_Options;
   dcv::EncoderResult  m_LastResult;
   dcv::CompressedFile m_File; // as ReadImageInformation() read it, for Read()
+  uint64_t            m_MaximumMemory{ dcv::DefaultMaximumMemory() };
 };
 
 } // namespace itk

@@ -37,7 +37,9 @@ namespace itk
  * bounding box meets the requested region, so streaming a volume slab by slab costs about one full
  * decode.
  *
- * Parameter: FileName (no default).
+ * Parameters: FileName (no default); MaximumMemory (bytes that decoding may need, default
+ * dcv::DefaultMaximumMemory(), half of the physical memory; 0: no limit), checked against what the
+ * header implies before the output is allocated (as DCVImageIO).
  * \sa DCVImageIO
  * \ingroup DelaunayCompression
  */
@@ -61,6 +63,9 @@ public:
   itkSetStringMacro(FileName);
   itkGetStringMacro(FileName);
 
+  itkSetMacro(MaximumMemory, uint64_t);
+  itkGetConstMacro(MaximumMemory, uint64_t);
+
   /** Number of cells rasterized by the last update (for tests and diagnostics). */
   itkGetConstMacro(NumberOfRasterizedCells, SizeValueType);
 
@@ -74,6 +79,7 @@ protected:
     Superclass::PrintSelf(os, indent);
     os << indent << "FileName: " << m_FileName << std::endl;
     os << indent << "NumberOfRasterizedCells: " << m_NumberOfRasterizedCells << std::endl;
+    os << indent << "MaximumMemory: " << m_MaximumMemory << std::endl;
   }
 
   void
@@ -83,6 +89,7 @@ protected:
     try
     {
       file = dcv::ReadCompressedFile(m_FileName);
+      dcv::CheckDecodingMemory(file.header, file.name, dcv::DecodeOutput::Volume, { m_MaximumMemory });
     }
     catch (const dcv::FormatError & e)
     {
@@ -107,7 +114,7 @@ protected:
     {
       try
       {
-        m_Approximation = dcv::Decode(m_File);
+        m_Approximation = dcv::Decode(m_File, { m_MaximumMemory });
       }
       catch (const dcv::FormatError & e)
       {
@@ -130,6 +137,7 @@ private:
   dcv::Approximation  m_Approximation;
   bool                m_Decoded{ false };
   SizeValueType       m_NumberOfRasterizedCells{ 0 };
+  uint64_t            m_MaximumMemory{ dcv::DefaultMaximumMemory() };
 };
 
 } // namespace itk

@@ -66,6 +66,11 @@ public:
   itkGetConstMacro(QuantizationOrigin, double);
   itkSetMacro(QuantizationStep, double);
   itkGetConstMacro(QuantizationStep, double);
+  /** Reading: the most memory (bytes) that decoding a file may need (dcv::DecodingMemory() of the mesh:
+   * about 1 KiB per point); default dcv::DefaultMaximumMemory(), half of the physical memory; 0: no
+   * limit. A file that needs more is refused before anything is allocated from its numbers. */
+  itkSetMacro(MaximumMemory, uint64_t);
+  itkGetConstMacro(MaximumMemory, uint64_t);
   void
   SetDecodedPixelType(dcv::PixelType type)
   {
@@ -134,6 +139,7 @@ private:
   ImageBase<3>::ConstPointer m_ReferenceImage;
   double                     m_QuantizationOrigin{ 0.0 };
   double                     m_QuantizationStep{ 0.0 };
+  uint64_t                   m_MaximumMemory{ dcv::DefaultMaximumMemory() };
   dcv::PixelType             m_DecodedPixelType{ dcv::PixelType::Float32 };
   bool                       m_DecodedPixelTypeSet{ false };
   dcv::GridScale             m_Scale{ { 0, 0, 0 } };

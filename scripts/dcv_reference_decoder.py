@@ -134,6 +134,9 @@ def parse_container(data):
         raise DamagedFile("absurd point count %d for %d voxels" % (n, voxels))
     if length > f.left():
         raise DamagedFile("truncated (the payload is %d bytes, %d remain)" % (length, f.left()))
+    if n > 11728 * length:  # every value costs at least 6.825e-4 bits (docs/format.md, "Resource limits")
+        raise DamagedFile("damaged (%d points cannot be coded in %d payload bytes, at most %d)"
+                          % (n, length, 11728 * length))
     payload = f.take(length, "payload")
 
     residual_step, residual_layer = 0.0, b""

@@ -1,5 +1,6 @@
 #!/usr/bin/env bash
-# Installs the Debian (bookworm) packages the module needs, when they are missing.
+# Installs the Debian (bookworm) packages the module needs, when they are missing (--fuzz: also those of
+# scripts/fuzz.sh).
 set -euo pipefail
 
 packages=(
@@ -21,6 +22,11 @@ packages=(
   python3-vtk9            # VTK's readers check what dcv mesh writes (dcvMeshTest)
   python3-numpy           # ... and probe it at the voxel centres
 )
+
+# scripts/fuzz.sh: libFuzzer (clang's runtime); not needed to build or test the module.
+if [ "${1:-}" = "--fuzz" ]; then
+  packages+=(clang libclang-rt-14-dev)
+fi
 
 missing=()
 for p in "${packages[@]}"; do

@@ -165,22 +165,27 @@ Approximation
 DecodePayload(const std::vector<uint8_t> & payload, const GridSize & grid, uint32_t count, double q0, double q,
               const std::string & name, const GridScale & scale)
 {
+  if (uint64_t(count) > MaximumPointsPerPayloadByte * payload.size())
+  {
+    throw FormatError(name + ": damaged (" + std::to_string(count) + " points cannot be coded in " +
+                      std::to_string(payload.size()) + " payload bytes)");
+  }
   ArithmeticDecoder decoder(payload.data(), payload.size());
   Approximation     a;
   a.grid = grid;
   a.scale = scale;
   try
   {
-    a.points = DecodePositions(decoder, grid, count);
+    a.points = DecodePositions(decoder, grid, count); // stops where the stream is overrun
+    if (decoder.Overrun())
+    {
+      throw FormatError(name + ": the payload ends inside the point positions");
+    }
     CheckPoints(grid, a.points);
   }
   catch (const std::invalid_argument & e)
   {
     throw FormatError(name + ": damaged point positions (" + e.what() + ")");
-  }
-  if (decoder.Overrun())
-  {
-    throw FormatError(name + ": the payload ends inside the point positions");
   }
   a.tetrahedra = Tetrahedralize(a.points, a.scale);
   const Adjacency      adjacency(a.points.size(), a.tetrahedra);
@@ -192,6 +197,10 @@ DecodePayload(const std::vector<uint8_t> & payload, const GridSize & grid, uint3
     int           known = 0;
     const int64_t prediction = ValueCoder::Predict(adjacency, k, i, known);
     k[i] = prediction + values.residual[ValueCoder::Context(known)].Decode(decoder);
+    if (decoder.Overrun())
+    {
+      throw FormatError(name + ": the payload ends inside the values");
+    }
     if (std::abs(k[i]) >= (int64_t(1) << 31))
     {
       throw FormatError(name + ": damaged values");
@@ -212,18 +221,20 @@ DecodePayload(const std::vector<uint8_t> & payload, const GridSize & grid, uint3
 }
 
 Approximation
-DecodeMesh(const CompressedFile & file)
+DecodeMesh(const CompressedFile & file, const DecodeLimits & limits)
 {
   const FileHeader & h = file.header;
+  CheckDecodingMemory(h, file.name, DecodeOutput::Mesh, limits);
   return DecodePayload(
     file.payload, h.size, h.numberOfPoints, h.quantizationOrigin, h.quantizationStep, file.name, h.scale);
 }
 
 Approximation
-Decode(const CompressedFile & file)
+Decode(const CompressedFile & file, const DecodeLimits & limits)
 {
   const FileHeader & h = file.header;
-  Approximation      a = DecodeMesh(file);
+  CheckDecodingMemory(h, file.name, DecodeOutput::Volume, limits);
+  Approximation a = DecodeMesh(file, limits);
   if (h.residualStep > 0.0)
   {
     a.residual = { h.residualStep, DecodeResidualLayer(h.residualLayer, h.size, file.name) };

@@ -331,9 +331,9 @@ void
 Decode(const Box & box, uint64_t n, SplitModel & model, DecoderIo & io, std::vector<GridPoint> & out)
 {
   const uint64_t V = box.Voxels();
-  if (n == 0)
+  if (n == 0 || io.decoder.Overrun())
   {
-    return;
+    return; // an overrun stream is damaged: no more work (or memory) for its garbage
   }
   if (n == V)
   {

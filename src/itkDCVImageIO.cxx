@@ -110,6 +110,8 @@ DCVImageIO::ReadImageInformation()
   try
   {
     m_File = dcv::ReadCompressedFile(m_FileName);
+    // Before ImageFileReader allocates the image from these numbers.
+    dcv::CheckDecodingMemory(m_File.header, m_File.name, dcv::DecodeOutput::Volume, { m_MaximumMemory });
   }
   catch (const dcv::FormatError & e)
   {
@@ -131,7 +133,7 @@ DCVImageIO::Read(void * buffer)
   dcv::Approximation a;
   try
   {
-    a = dcv::Decode(m_File);
+    a = dcv::Decode(m_File, { m_MaximumMemory });
   }
   catch (const dcv::FormatError & e)
   {
@@ -189,6 +191,7 @@ DCVImageIO::PrintSelf(std::ostream & os, Indent indent) const
   os << indent << "NumberOfPoints: " << m_Options.numberOfPoints << std::endl;
   os << indent << "Mode: " << m_Options.mode << std::endl;
   os << indent << "QuantizationStep: " << m_Options.quantizationStep << std::endl;
+  os << indent << "MaximumMemory: " << m_MaximumMemory << std::endl;
 }
 
 DCVImageIOFactory::DCVImageIOFactory()

@@ -88,7 +88,7 @@ DCVMeshIO::Decode()
   {
     const dcv::CompressedFile file = dcv::ReadCompressedFile(m_FileName);
     m_Header = file.header;
-    a = dcv::DecodeMesh(file); // the spline: a residual layer is voxels, not part of a mesh
+    a = dcv::DecodeMesh(file, { m_MaximumMemory }); // the spline: a residual layer is voxels, not part of a mesh
   }
   catch (const dcv::FormatError & e)
   {
@@ -264,6 +264,7 @@ DCVMeshIO::PrintSelf(std::ostream & os, Indent indent) const
   os << indent << "ReferenceImage: " << m_ReferenceImage.GetPointer() << std::endl;
   os << indent << "QuantizationOrigin: " << m_QuantizationOrigin << std::endl;
   os << indent << "QuantizationStep: " << m_QuantizationStep << std::endl;
+  os << indent << "MaximumMemory: " << m_MaximumMemory << std::endl;
   os << indent << "Scale: " << m_Scale[0] << " " << m_Scale[1] << " " << m_Scale[2] << std::endl;
   os << indent << "DecodedPixelType: " << dcv::PixelTypeName(this->GetDecodedPixelType()) << std::endl;
 }

@@ -170,9 +170,9 @@ ParseCompressedBytes(const std::vector<uint8_t> & bytes, const std::string & nam
  * an itk::Image of pixel type T with the file's geometry. */
 template <typename T>
 typename itk::Image<T, 3>::Pointer
-DecodeImage(const CompressedFile & file)
+DecodeImage(const CompressedFile & file, const DecodeLimits & limits = DecodeLimits())
 {
-  const Approximation a = Decode(file);
+  const Approximation a = Decode(file, limits); // refuses what exceeds `limits` before allocating
   auto                image = itk::Image<T, 3>::New();
   itk::CopyDCVGeometry(file.header, image.GetPointer());
   image->SetBufferedRegion(image->GetLargestPossibleRegion());
@@ -185,9 +185,9 @@ DecodeImage(const CompressedFile & file)
  * writes. */
 template <typename TFunction>
 void
-DecodeVolume(const CompressedFile & file, TFunction && f)
+DecodeVolume(const CompressedFile & file, TFunction && f, const DecodeLimits & limits = DecodeLimits())
 {
-  VisitPixelType(file.header.pixelType, [&](auto pixel) { f(DecodeImage<decltype(pixel)>(file)); });
+  VisitPixelType(file.header.pixelType, [&](auto pixel) { f(DecodeImage<decltype(pixel)>(file, limits)); });
 }
 
 /** A progress function that shows "label NN%" on stderr when it is a terminal (and not `quiet`);

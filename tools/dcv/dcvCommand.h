@@ -89,6 +89,11 @@ WithVolume(const std::string & input, const std::string & series, const std::str
 void
 AddMethodOptions(CLI::App & command, std::string & input, MethodOptions & o);
 
+/** Declares --max-memory SIZE (bytes, or with a suffix K, M, G, T: powers of 1024; 0: no limit) on a
+ * command that decodes: what `limits` allow the decoding of a file (default: half of the physical memory). */
+void
+AddMaximumMemoryOption(CLI::App & command, DecodeLimits & limits);
+
 /** The encoder's target options of compress and batch (--bpv, --psnr, --points, mutually exclusive),
  * --step and --no-residual-layer; returns the three targets' options, so callers can ask which was given. */
 struct TargetOptions

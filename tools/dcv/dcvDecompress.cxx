@@ -33,6 +33,7 @@ struct DecompressOptions
   bool        force{ false };
   bool        quiet{ false };
   bool        dicom{ false };
+  DecodeLimits limits;
 };
 
 void
@@ -60,7 +61,7 @@ Decompress(const DecompressOptions & d)
       },
       d.output,
       d.force);
-  });
+  }, d.limits);
   if (!d.quiet)
   {
     std::cout << "seconds: " << SecondsSince(start) << "\n";
@@ -76,6 +77,7 @@ const RegisterCommand decompress{
       command.add_option("INPUT", d->input, "Input .dcv file")->required();
       command.add_option("OUTPUT", d->output, "Output volume (format from its extension)")->required();
       command.add_flag("--force,-f", d->force, "Overwrite OUTPUT if it exists");
+      AddMaximumMemoryOption(command, d->limits);
       command.add_flag("--dicom",
                        d->dicom,
                        "OUTPUT is a directory: write a DICOM series (one file per slice, a derived lossy series "

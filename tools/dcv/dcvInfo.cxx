@@ -51,6 +51,8 @@ Info(const std::string & input)
     std::cout << "none\n";
   else
     std::cout << h.residualLayer.size() << " bytes of JPEG 2000, step " << h.residualStep << "\n";
+  std::cout << "memory to decode: " << FormatByteCount(DecodingMemory(h, DecodeOutput::Volume)) << " (mesh alone "
+            << FormatByteCount(DecodingMemory(h, DecodeOutput::Mesh)) << ")\n";
   for (const auto & kv : h.metadata)
     std::cout << "metadata: " << kv.first << " = " << kv.second << "\n";
 }

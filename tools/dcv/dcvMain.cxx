@@ -23,6 +23,9 @@
 #include "itkMultiThreaderBase.h"
 
 #include <algorithm>
+#include <cctype>
+#include <cmath>
+#include <cstring>
 #include <chrono>
 #include <iostream>
 
@@ -98,6 +101,52 @@ AddMethodOptions(CLI::App & command, std::string & input, MethodOptions & o)
     ->capture_default_str();
   command.add_flag("--force,-f", o.force, "Overwrite OUTPUT if it exists");
   command.add_flag("--quiet,-q", o.quiet, "Print nothing but errors");
+}
+
+void
+AddMaximumMemoryOption(CLI::App & command, DecodeLimits & limits)
+{
+  command
+    .add_option_function<std::string>(
+      "--max-memory",
+      [&limits](const std::string & text) {
+        // A number of bytes with an optional binary suffix: 512M, 8G, 1.5T.
+        std::size_t  end = 0;
+        double       value = -1.0;
+        const char * suffixes = "KMGT";
+        try
+        {
+          value = std::stod(text, &end);
+        }
+        catch (const std::exception &)
+        {
+          end = 0;
+        }
+        std::string suffix = text.substr(end);
+        double      factor = 1.0;
+        if (!suffix.empty())
+        {
+          const char * at = std::strchr(suffixes, std::toupper(static_cast<unsigned char>(suffix[0])));
+          const std::string rest = suffix.substr(1);
+          if (at == nullptr || !(rest.empty() || rest == "B" || rest == "iB"))
+          {
+            value = -1.0;
+          }
+          else
+          {
+            factor = std::pow(1024.0, double(at - suffixes + 1));
+          }
+        }
+        if (end == 0 || !(value >= 0.0) || !(value * factor < 1.8e19))
+        {
+          throw CLI::ValidationError("--max-memory", "must be a size in bytes (e.g. 512M, 8G; 0: no limit), got " + text);
+        }
+        limits.maximumMemory = uint64_t(value * factor);
+      },
+      "The most memory decoding may need (bytes, or K, M, G, T; 0: no limit): a file that needs more is refused "
+      "before anything is allocated. Default: half of the physical memory, " +
+        FormatByteCount(DefaultMaximumMemory()))
+    ->type_name("SIZE");
 }
 
 TargetOptions

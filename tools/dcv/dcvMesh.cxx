@@ -38,6 +38,7 @@ struct MeshOptions
   std::string output;
   bool        force{ false };
   bool        quiet{ false };
+  DecodeLimits limits;
 };
 
 /** The spline of a file as a mesh: its points in physical space (the header's geometry, by the one
@@ -76,7 +77,7 @@ Mesh(const MeshOptions & m)
     throw Failure(std::string("cannot write ") + e.what());
   }
   const auto            start = std::chrono::steady_clock::now();
-  const Approximation   a = DecodeMesh(file);
+  const Approximation   a = DecodeMesh(file, m.limits);
   const TetrahedralMesh mesh = SplineMesh(file, a);
   const std::string     temporary = TemporaryOutput(m.output);
   try
@@ -131,6 +132,7 @@ const RegisterCommand mesh{
                     "Output mesh: .vtu (VTK XML UnstructuredGrid, zlib-compressed) or .vtk (VTK legacy, binary)")
         ->required();
       command.add_flag("--force,-f", m->force, "Overwrite OUTPUT if it exists");
+      AddMaximumMemoryOption(command, m->limits);
       command.add_flag("--quiet,-q", m->quiet, "Print nothing but errors");
       command.footer("The mesh is the spline the points define: a residual layer (JPEG 2000 of what the spline "
                      "leaves), if the file has one, is voxels and not part of it; `dcv decompress` adds it.\n");
