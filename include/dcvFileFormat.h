@@ -199,7 +199,7 @@ CheckDecodingMemory(const FileHeader & header, const std::string & name, DecodeO
 
 /** "1.5 GiB": a byte count for messages. */
 DelaunayCompression_EXPORT std::string
-FormatByteCount(uint64_t bytes);
+                           FormatByteCount(uint64_t bytes);
 
 /** Reads and parses a whole file, once (FormatError naming it when it cannot be read or parsed). */
 DelaunayCompression_EXPORT CompressedFile

@@ -159,10 +159,10 @@ struct RefinementEngine::Impl
   std::priority_queue<HeapEntry> byCellError;  // MaxTetrahedronErrorPosition
   std::priority_queue<HeapEntry> byVoxelError; // MaxErrorPosition
 
-  std::vector<uint64_t> isVertex; // one bit per voxel
-  uint64_t              meshVersion{ 0 };     // counts insertions and removals
+  std::vector<uint64_t> isVertex;                   // one bit per voxel
+  uint64_t              meshVersion{ 0 };           // counts insertions and removals
   uint64_t              solvedMesh{ ~uint64_t(0) }; // the mesh version `solved` belongs to
-  std::vector<double>   solved;               // least-squares values per vertex id (unquantized)
+  std::vector<double>   solved;                     // least-squares values per vertex id (unquantized)
   double                squaredError{ 0.0 };
   uint64_t              step{ 0 };
 
@@ -422,8 +422,10 @@ struct RefinementEngine::Impl
     uint64_t volume6 = 0;
     for (const auto & c : created)
     {
-      volume6 += uint64_t(std::abs(SignedVolume6({ mesh.Point(c.vertices[0]), mesh.Point(c.vertices[1]),
-                                                    mesh.Point(c.vertices[2]), mesh.Point(c.vertices[3]) })));
+      volume6 += uint64_t(std::abs(SignedVolume6({ mesh.Point(c.vertices[0]),
+                                                   mesh.Point(c.vertices[1]),
+                                                   mesh.Point(c.vertices[2]),
+                                                   mesh.Point(c.vertices[3]) })));
     }
     constexpr uint64_t parallelVoxels = 32768; // a few hundred microseconds of scanning
     if (volume6 / 6 >= parallelVoxels && created.size() > 1)
@@ -800,7 +802,7 @@ RefinementEngine::SetQuantizationStep(double step)
 double
 RefinementEngine::OptimizeValues()
 {
-  Impl &     d = *m_Impl;
+  Impl & d = *m_Impl;
   // The solution depends on the mesh and the image only: the step trials of rate control, which
   // requantize the values on one mesh, reuse it.
   if (d.solvedMesh != d.meshVersion)

@@ -114,27 +114,15 @@ SmallRealFile()
 class ResourceLimits : public ::testing::Test
 {
 protected:
-  void
-  SetUp() override
-  {
-    m_Directory = fs::temp_directory_path() / ("dcv-limits-" + std::to_string(::getpid()) + "-" +
-                                               ::testing::UnitTest::GetInstance()->current_test_info()->name());
-    fs::remove_all(m_Directory);
-    fs::create_directories(m_Directory);
-  }
-  void
-  TearDown() override
-  {
-    fs::remove_all(m_Directory);
-  }
   std::string
   Write(const std::vector<uint8_t> & bytes, const std::string & name) const
   {
-    const std::string path = (m_Directory / name).string();
-    std::ofstream(path, std::ios::binary).write(reinterpret_cast<const char *>(bytes.data()), std::streamsize(bytes.size()));
+    const std::string path = m_Directory / name;
+    std::ofstream(path, std::ios::binary)
+      .write(reinterpret_cast<const char *>(bytes.data()), std::streamsize(bytes.size()));
     return path;
   }
-  fs::path m_Directory;
+  test::TemporaryDirectory m_Directory;
 };
 
 // The 94-byte reproducer: a 65535^3 grid and 2^32 - 1 points in 4 payload bytes (it grew to std::bad_alloc).
@@ -143,8 +131,7 @@ TEST_F(ResourceLimits, TheMostPointsOfTheLargestGridInFourBytesAreRefusedByThePa
   const auto bytes = ForgedFile({ 65535, 65535, 65535 }, 0xFFFFFFFFu, 4);
   EXPECT_EQ(bytes.size(), 94u);
   const std::string error = ParseError(bytes);
-  EXPECT_EQ(error.rfind("'forged.dcv': damaged (4294967295 points cannot be coded in 4 payload bytes", 0), 0u)
-    << error;
+  EXPECT_EQ(error.rfind("'forged.dcv': damaged (4294967295 points cannot be coded in 4 payload bytes", 0), 0u) << error;
 }
 
 // n = 10^8 (106 s and 1.6 GB before the refusal): with too short a payload refused by the parser, and with
@@ -215,10 +202,10 @@ TEST_F(ResourceLimits, TheCheapestValueStreamFitsTheBoundOfThePointCount)
 // Positions stop as soon as the stream is overrun, not after decoding all the points from zeros.
 TEST_F(ResourceLimits, PositionsStopWhereThePayloadEnds)
 {
-  const GridSize          grid{ 64, 64, 64 };
+  const GridSize             grid{ 64, 64, 64 };
   const std::vector<uint8_t> two{ 0x12, 0x34 };
-  ArithmeticDecoder       decoder(two.data(), two.size());
-  const auto              points = DecodePositions(decoder, grid, 20000);
+  ArithmeticDecoder          decoder(two.data(), two.size());
+  const auto                 points = DecodePositions(decoder, grid, 20000);
   EXPECT_TRUE(decoder.Overrun());
   EXPECT_TRUE(points.empty()) << points.size();
   const std::string error = DecodeError(Parsed(ForgedFile(grid, 20000, 2)), DecodeLimits{});
@@ -280,13 +267,13 @@ TEST_F(ResourceLimits, ATinyLimitRefusesARealFileEverywhere)
       << e.GetDescription();
   }
 
-  const std::string output = (m_Directory / "out.nrrd").string();
+  const std::string output = m_Directory / "out.nrrd";
   test::Result      r = test::RunDcv("decompress " + path + " " + output + " --max-memory 1K");
   EXPECT_EQ(r.status, 1);
   EXPECT_NE(r.output.find("'" + path + "': decoding would need about 72.0 KiB"), std::string::npos) << r.output;
   EXPECT_NE(r.output.find("memory limit of 1.0 KiB"), std::string::npos) << r.output;
   EXPECT_FALSE(fs::exists(output));
-  r = test::RunDcv("mesh " + path + " " + (m_Directory / "out.vtu").string() + " --max-memory 0.0005M");
+  r = test::RunDcv("mesh " + path + " " + m_Directory / "out.vtu" + " --max-memory 0.0005M");
   EXPECT_EQ(r.status, 1);
   EXPECT_NE(r.output.find("memory limit of 524 bytes"), std::string::npos) << r.output;
   r = test::RunDcv("decompress " + path + " " + output + " --max-memory lots");
@@ -312,7 +299,8 @@ TEST(FuzzCorpus, EverySeedDecodesWithinItsLimitAndIsRefusedBelowIt)
     const Approximation  a = Decode(file, DecodeLimits{ needed });
     std::vector<float>   volume(a.grid.NumberOfVoxels());
     Rasterize(a, volume.data(), 1);
-    EXPECT_NE(DecodeError(file, DecodeLimits{ needed - 1 }).find(file.name + ": decoding would need"), std::string::npos);
+    EXPECT_NE(DecodeError(file, DecodeLimits{ needed - 1 }).find(file.name + ": decoding would need"),
+              std::string::npos);
     ++seeds;
   }
   EXPECT_GE(seeds, 5u);

@@ -28,11 +28,11 @@ namespace
 {
 struct DecompressOptions
 {
-  std::string input;
-  std::string output;
-  bool        force{ false };
-  bool        quiet{ false };
-  bool        dicom{ false };
+  std::string  input;
+  std::string  output;
+  bool         force{ false };
+  bool         quiet{ false };
+  bool         dicom{ false };
   DecodeLimits limits;
 };
 
@@ -45,23 +45,26 @@ Decompress(const DecompressOptions & d)
     CheckOutput(d.output, d.force);
   }
   const auto start = std::chrono::steady_clock::now();
-  DecodeVolume(file, [&](auto image) {
-    if (!d.dicom)
-    {
-      WriteVolume(image.GetPointer(), d.output);
-      return;
-    }
-    const std::size_t sliceVoxels = std::size_t(file.header.size.x) * std::size_t(file.header.size.y);
-    WriteDicomSeries(
-      file.header,
-      file.size,
-      [&](int32_t z, std::vector<double> & values) {
-        const auto * first = image->GetBufferPointer() + std::size_t(z) * sliceVoxels;
-        values.assign(first, first + sliceVoxels);
-      },
-      d.output,
-      d.force);
-  }, d.limits);
+  DecodeVolume(
+    file,
+    [&](auto image) {
+      if (!d.dicom)
+      {
+        WriteVolume(image.GetPointer(), d.output);
+        return;
+      }
+      const std::size_t sliceVoxels = std::size_t(file.header.size.x) * std::size_t(file.header.size.y);
+      WriteDicomSeries(
+        file.header,
+        file.size,
+        [&](int32_t z, std::vector<double> & values) {
+          const auto * first = image->GetBufferPointer() + std::size_t(z) * sliceVoxels;
+          values.assign(first, first + sliceVoxels);
+        },
+        d.output,
+        d.force);
+    },
+    d.limits);
   if (!d.quiet)
   {
     std::cout << "seconds: " << SecondsSince(start) << "\n";

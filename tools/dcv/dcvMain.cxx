@@ -96,7 +96,8 @@ AddMethodOptions(CLI::App & command, std::string & input, MethodOptions & o)
       "--scale", o.scale, "Delaunay space per axis: SX,SY,SZ (integers 1 to 16), or 0,0,0: from the voxel spacing")
     ->delimiter(',')
     ->expected(3);
-  command.add_option("--threads", o.encoder.threads, "Threads to use (0: one per core); the file does not depend on it")
+  command
+    .add_option("--threads", o.encoder.threads, "Threads to use (0: one per core); the file does not depend on it")
     ->check(CLI::Range(0u, 1024u))
     ->capture_default_str();
   command.add_flag("--force,-f", o.force, "Overwrite OUTPUT if it exists");
@@ -126,7 +127,7 @@ AddMaximumMemoryOption(CLI::App & command, DecodeLimits & limits)
         double      factor = 1.0;
         if (!suffix.empty())
         {
-          const char * at = std::strchr(suffixes, std::toupper(static_cast<unsigned char>(suffix[0])));
+          const char *      at = std::strchr(suffixes, std::toupper(static_cast<unsigned char>(suffix[0])));
           const std::string rest = suffix.substr(1);
           if (at == nullptr || !(rest.empty() || rest == "B" || rest == "iB"))
           {
@@ -139,7 +140,8 @@ AddMaximumMemoryOption(CLI::App & command, DecodeLimits & limits)
         }
         if (end == 0 || !(value >= 0.0) || !(value * factor < 1.8e19))
         {
-          throw CLI::ValidationError("--max-memory", "must be a size in bytes (e.g. 512M, 8G; 0: no limit), got " + text);
+          throw CLI::ValidationError("--max-memory",
+                                     "must be a size in bytes (e.g. 512M, 8G; 0: no limit), got " + text);
         }
         limits.maximumMemory = uint64_t(value * factor);
       },

@@ -34,10 +34,10 @@ constexpr const char * ValueName = "value";
 
 struct MeshOptions
 {
-  std::string input;
-  std::string output;
-  bool        force{ false };
-  bool        quiet{ false };
+  std::string  input;
+  std::string  output;
+  bool         force{ false };
+  bool         quiet{ false };
   DecodeLimits limits;
 };
 
