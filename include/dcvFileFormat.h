@@ -136,6 +136,7 @@ struct FileHeader
   /** The residual layer (FlagResidual, dcvResidualLayer.h): its step (0: the file has none) and its
    * JPEG 2000 codestream. */
   double               residualStep{ 0.0 };
+  int32_t              residualLevels{ 0 }; // of its inter-slice wavelet (dcvInterSliceWavelet.h), 0: none
   std::vector<uint8_t> residualLayer;
 };
 

@@ -59,16 +59,19 @@ DelaunayCompression_EXPORT int32_t
 MosaicColumns(const GridSize & grid);
 
 /** Codes residual samples (laid out as the grid, x fastest; |sample| < 2^15) as a JPEG 2000 codestream
- * of at most `maximumBytes` bytes. Returns an empty vector when no codestream that small can be made
+ * of at most `maximumBytes` bytes, after `levels` levels of the inter-slice wavelet
+ * (dcvInterSliceWavelet.h; 0: none). Returns an empty vector when no codestream that small can be made
  * (or more slices than MaximumComponents as components). */
 DelaunayCompression_EXPORT std::vector<uint8_t>
 EncodeResidualLayer(const std::vector<int32_t> & samples, const GridSize & grid, std::size_t maximumBytes,
-                    Wavelet wavelet, Arrangement arrangement = Arrangement::Mosaic);
+                    Wavelet wavelet, Arrangement arrangement = Arrangement::Mosaic, int32_t levels = 0);
 
-/** Decodes a residual layer's codestream to samples laid out as the grid. Throws FormatError starting
- * with `name` when the codestream is damaged or does not hold a mosaic of the grid's slices. */
+/** Decodes a residual layer's codestream to samples laid out as the grid, undoing `levels` levels of
+ * the inter-slice wavelet. Throws FormatError starting with `name` when the codestream is damaged or
+ * does not hold a mosaic of the grid's slices. */
 DelaunayCompression_EXPORT std::vector<int32_t>
-DecodeResidualLayer(const std::vector<uint8_t> & codestream, const GridSize & grid, const std::string & name);
+DecodeResidualLayer(const std::vector<uint8_t> & codestream, const GridSize & grid, const std::string & name,
+                    int32_t levels = 0);
 
 /** Bytes a residual layer adds to a file besides its codestream (its step and length). */
 constexpr std::size_t ResidualLayerFieldBytes = 12;
@@ -82,16 +85,47 @@ ResidualStep(double peak, bool integer);
 struct ResidualChoice
 {
   double               step{ 0.0 };
-  std::vector<uint8_t> codestream; // empty: none fits
-  std::vector<int32_t> samples;    // as the decoder gets them
+  int32_t              levels{ 0 }; // of the inter-slice wavelet
+  std::vector<uint8_t> codestream;  // empty: none fits
+  std::vector<int32_t> samples;     // as the decoder gets them
   double               squaredError{ 0.0 };
 };
 
-/** A wavelet and an arrangement. */
+/** A wavelet, an arrangement and the levels of the inter-slice wavelet. */
 struct ResidualCoding
 {
   Wavelet     wavelet;
   Arrangement arrangement;
+  int32_t     levels{ 0 };
+};
+
+/** Codes the spline's residual against `voxels` (the original, laid out as the grid) in at most
+ * `maximumBytes` bytes, one coding at a time, so that the caller chooses the next coding from the errors
+ * so far; keeps the coding that decodes closest, decoded as a decoder will. `voxels` must outlive it. */
+class DelaunayCompression_EXPORT ResidualSearch
+{
+public:
+  ResidualSearch(const float * voxels, PixelType type, const Approximation & spline, double step,
+                 std::size_t maximumBytes);
+  /** Codes and decodes with `coding`; the squared error of the volume it decodes to (infinity when no
+   * codestream fits). */
+  double
+  Try(const ResidualCoding & coding);
+  /** The best coding tried (no codestream when none fits). */
+  ResidualChoice
+  Best() &&
+  {
+    return std::move(best);
+  }
+
+private:
+  const float *        voxels;
+  PixelType            type;
+  GridSize             grid;
+  std::size_t          maximumBytes;
+  std::vector<uint8_t> splineVoxels; // the spline's voxels, of the pixel type
+  std::vector<int32_t> samples;      // the residual in steps
+  ResidualChoice       best;
 };
 
 /** Codes the spline's residual against `voxels` (the original, laid out as the grid) with each of

@@ -67,6 +67,10 @@ FLAG_METADATA = 2
 FLAG_SCALE = 4
 FLAG_RESIDUAL = 8
 FLAG_DEFLATED = 16
+FLAG_INTER_SLICE = 32
+# Section "Inter-slice wavelet": band weights in 1/4096 (low band after l levels, high band of level k).
+LOW_BAND_WEIGHT = (5917, 8012, 11201, 15795, 22321, 31560)
+HIGH_BAND_WEIGHT = (4096, 4639, 6084, 8428, 11856, 16744)
 MAXIMUM_INFLATED_METADATA = 16 << 20
 IDENTITY = (1.0, 0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 1.0)
 
@@ -111,8 +115,9 @@ def parse_container(data):
     pixel_type, flags, mode = f.unpack("3B", "header")
     if pixel_type not in PIXEL_TYPES:
         raise DamagedFile("unknown pixel type code %d" % pixel_type)
-    if flags & ~(FLAG_DIRECTION | FLAG_METADATA | FLAG_SCALE | FLAG_RESIDUAL | FLAG_DEFLATED) or \
-            (flags & FLAG_DEFLATED and not flags & FLAG_METADATA):
+    if flags & ~(FLAG_DIRECTION | FLAG_METADATA | FLAG_SCALE | FLAG_RESIDUAL | FLAG_DEFLATED | FLAG_INTER_SLICE) or \
+            (flags & FLAG_DEFLATED and not flags & FLAG_METADATA) or \
+            (flags & FLAG_INTER_SLICE and not flags & FLAG_RESIDUAL):
         raise DamagedFile("unknown header flags %d" % flags)
     size = f.unpack("3H", "header")
     if min(size) < 2:
@@ -139,11 +144,17 @@ def parse_container(data):
                           % (n, length, 11728 * length))
     payload = f.take(length, "payload")
 
-    residual_step, residual_layer = 0.0, b""
+    residual_step, residual_levels, residual_layer = 0.0, 0, b""
     if flags & FLAG_RESIDUAL:
         (residual_step,) = f.unpack("d", "residual layer")
         if not (math.isfinite(residual_step) and residual_step > 0.0):
             raise DamagedFile("invalid residual step")
+        if flags & FLAG_INTER_SLICE:
+            (residual_levels,) = f.unpack("B", "residual layer")
+            most = inter_slice_levels(size[2])
+            if not 1 <= residual_levels <= most:
+                raise DamagedFile("invalid inter-slice wavelet (%d levels; %d slices take 1 to %d)"
+                                  % (residual_levels, size[2], most))
         (residual_length,) = f.unpack("I", "residual layer")
         if residual_length == 0 or residual_length > f.left():
             raise DamagedFile("truncated (the residual layer is %d bytes, %d remain)" % (residual_length, f.left()))
@@ -185,7 +196,7 @@ def parse_container(data):
 
     return dict(version=VERSION, pixel_type=pixel_type, flags=flags, mode=mode, size=size, spacing=spacing,
                 origin=origin, direction=direction, scale=scale, q0=q0, q=q, n=n, payload=payload, metadata=metadata,
-                residual_step=residual_step, residual_layer=residual_layer)
+                residual_step=residual_step, residual_levels=residual_levels, residual_layer=residual_layer)
 
 
 # =========================================================================
@@ -485,6 +496,45 @@ def read_pgx(data):
                                              data, end + 1)
 
 
+def inter_slice_levels(slices):
+    """Section "Inter-slice wavelet", Levels: every level's input holds two slices or more, at most 6."""
+    levels = 0
+    while levels < 6 and -(-slices // (1 << levels)) >= 2:
+        levels += 1
+    return levels
+
+
+def inverse_inter_slice(samples, size, levels):
+    """Section "Inter-slice wavelet", Inverse: each column along z unweighted, then the 5/3 lifting undone."""
+    sx, sy, sz = size
+    plane = sx * sy
+    n = [-(-sz // (1 << k)) for k in range(levels + 1)]  # n_k = ceil(size z / 2^k)
+    weights = []
+    for i in range(sz):
+        if i < n[levels]:
+            weights.append(LOW_BAND_WEIGHT[levels - 1])
+        else:
+            k = min(k for k in range(1, levels + 1) if i >= n[k])  # n_k <= i < n_(k-1)
+            weights.append(HIGH_BAND_WEIGHT[k - 1])
+    out = list(samples)
+    for c in range(plane):
+        col = [(8192 * samples[z * plane + c] + w) // (2 * w) for z, w in zip(range(sz), weights)]
+        for k in range(levels, 0, -1):
+            m = n[k - 1]
+            lows, highs = (m + 1) // 2, m // 2
+            low, high = col[:lows], col[lows:m]
+            x = [0] * m
+            for i in range(lows):  # D(-1) = D(0); for odd m, D((m-1)/2) = D((m-3)/2)
+                x[2 * i] = low[i] - ((high[max(i - 1, 0)] + high[min(i, highs - 1)] + 2) >> 2)
+            for i in range(highs):  # X(m) = X(m-2)
+                right = x[2 * i + 2] if 2 * i + 2 < m else x[2 * i]
+                x[2 * i + 1] = high[i] + ((x[2 * i] + right) >> 1)
+            col[:m] = x
+        for z in range(sz):
+            out[z * plane + c] = min(max(col[z], -(2 ** 31) + 1), 2 ** 31 - 1)
+    return out
+
+
 def decode_residual_layer(h):
     """Section "Residual layer": the samples r in grid order (x fastest), decoded by OpenJPEG's
     opj_decompress (libopenjp2-tools) from the codestream, then taken out of the slice mosaic."""
@@ -518,7 +568,7 @@ def decode_residual_layer(h):
             raise DamagedFile("damaged residual layer (neither a mosaic nor one component per slice)")
         for _, _, plane in planes:
             samples.extend(plane)
-        return samples
+        return inverse_inter_slice(samples, h["size"], h["residual_levels"]) if h["residual_levels"] else samples
     width, height, mosaic = planes[0]
     if width % sx or height % sy or height // sy != -(-sz // (width // sx)):
         raise DamagedFile("damaged residual layer (not a mosaic of %d slices of %dx%d samples)" % (sz, sx, sy))
@@ -528,7 +578,7 @@ def decode_residual_layer(h):
         for y in range(sy):
             row = (y0 + y) * width + x0
             samples.extend(mosaic[row:row + sx])
-    return samples
+    return inverse_inter_slice(samples, h["size"], h["residual_levels"]) if h["residual_levels"] else samples
 
 
 def print_header(h):
@@ -547,6 +597,7 @@ def print_header(h):
     print("payload_bytes", len(h["payload"]))
     if h["flags"] & FLAG_RESIDUAL:
         print("residual_step", repr(h["residual_step"]))
+        print("residual_levels", h["residual_levels"])
         print("residual_bytes", len(h["residual_layer"]))
     for key, value in h["metadata"]:
         print("metadata", json.dumps(key, ensure_ascii=False), json.dumps(value, ensure_ascii=False))

@@ -237,7 +237,7 @@ Decode(const CompressedFile & file, const DecodeLimits & limits)
   Approximation a = DecodeMesh(file, limits);
   if (h.residualStep > 0.0)
   {
-    a.residual = { h.residualStep, DecodeResidualLayer(h.residualLayer, h.size, file.name) };
+    a.residual = { h.residualStep, DecodeResidualLayer(h.residualLayer, h.size, file.name, h.residualLevels) };
   }
   return a;
 }

@@ -16,6 +16,7 @@
  *
  *=========================================================================*/
 #include "dcvFileFormat.h"
+#include "dcvInterSliceWavelet.h"
 
 #include <zlib.h>
 
@@ -32,11 +33,12 @@ namespace
 {
 // 0x89 first, as PNG does: a file that went through a text conversion is caught by the magic.
 constexpr uint8_t Magic[4] = { 0x89, 'D', 'C', 'V' };
-constexpr uint8_t FlagDirection = 1; // a non-identity direction matrix follows the origin
-constexpr uint8_t FlagMetadata = 2;  // a metadata block follows the payload
-constexpr uint8_t FlagScale = 4;     // three per-axis scales of the Delaunay space follow the direction
-constexpr uint8_t FlagResidual = 8;  // a residual layer follows the payload
-constexpr uint8_t FlagDeflated = 16; // the metadata pairs are deflated (zlib)
+constexpr uint8_t FlagDirection = 1;   // a non-identity direction matrix follows the origin
+constexpr uint8_t FlagMetadata = 2;    // a metadata block follows the payload
+constexpr uint8_t FlagScale = 4;       // three per-axis scales of the Delaunay space follow the direction
+constexpr uint8_t FlagResidual = 8;    // a residual layer follows the payload
+constexpr uint8_t FlagDeflated = 16;   // the metadata pairs are deflated (zlib)
+constexpr uint8_t FlagInterSlice = 32; // the residual layer has an inter-slice wavelet (with FlagResidual)
 /** Largest inflated metadata block a reader accepts: no zip bomb grows past it. */
 constexpr uint32_t MaximumInflatedMetadata = 16u << 20;
 
@@ -224,6 +226,12 @@ SerializeFile(const FileHeader & h, const std::vector<uint8_t> & payload)
   {
     throw std::invalid_argument("a .dcv residual layer needs a positive step and a codestream below 4 GiB");
   }
+  if (h.residualLevels < 0 || h.residualLevels > InterSliceLevels(h.size.z) || (h.residualLevels > 0 && !residual))
+  {
+    throw std::invalid_argument("a .dcv inter-slice wavelet needs a residual layer and at most " +
+                                std::to_string(InterSliceLevels(h.size.z)) + " levels for " + std::to_string(h.size.z) +
+                                " slices");
+  }
   for (int32_t s : h.scale)
   {
     if (s < 1 || s > MaximumGridScale)
@@ -255,7 +263,8 @@ SerializeFile(const FileHeader & h, const std::vector<uint8_t> & payload)
       deflated.clear();
   }
   w.U8(uint8_t((direction ? FlagDirection : 0) | (metadata ? FlagMetadata : 0) | (scaled ? FlagScale : 0) |
-               (residual ? FlagResidual : 0) | (deflated.empty() ? 0 : FlagDeflated)));
+               (residual ? FlagResidual : 0) | (deflated.empty() ? 0 : FlagDeflated) |
+               (h.residualLevels > 0 ? FlagInterSlice : 0)));
   w.U8(h.mode);
   w.U16(uint16_t(h.size.x));
   w.U16(uint16_t(h.size.y));
@@ -282,6 +291,8 @@ SerializeFile(const FileHeader & h, const std::vector<uint8_t> & payload)
   if (residual)
   {
     w.F64(h.residualStep);
+    if (h.residualLevels > 0)
+      w.U8(uint8_t(h.residualLevels));
     w.U32(uint32_t(h.residualLayer.size()));
     w.Bytes(h.residualLayer.data(), h.residualLayer.size());
   }
@@ -342,8 +353,8 @@ ParseFile(const std::vector<uint8_t> & bytes, const std::string & name, FileHead
   }
   h.pixelType = PixelType(type);
   const uint8_t flags = r.U8("header");
-  if (flags & ~(FlagDirection | FlagMetadata | FlagScale | FlagResidual | FlagDeflated) ||
-      ((flags & FlagDeflated) && !(flags & FlagMetadata)))
+  if (flags & ~(FlagDirection | FlagMetadata | FlagScale | FlagResidual | FlagDeflated | FlagInterSlice) ||
+      ((flags & FlagDeflated) && !(flags & FlagMetadata)) || ((flags & FlagInterSlice) && !(flags & FlagResidual)))
   {
     throw FormatError(name + ": unknown header flags " + std::to_string(flags));
   }
@@ -408,6 +419,7 @@ ParseFile(const std::vector<uint8_t> & bytes, const std::string & name, FileHead
   payload.assign(bytes.begin() + std::ptrdiff_t(r.Position()), bytes.begin() + std::ptrdiff_t(r.Position() + length));
   r.Skip(length);
   h.residualStep = 0.0;
+  h.residualLevels = 0;
   h.residualLayer.clear();
   if (flags & FlagResidual)
   {
@@ -415,6 +427,16 @@ ParseFile(const std::vector<uint8_t> & bytes, const std::string & name, FileHead
     if (!(h.residualStep > 0.0) || !std::isfinite(h.residualStep))
     {
       throw FormatError(name + ": invalid residual step");
+    }
+    if (flags & FlagInterSlice)
+    {
+      h.residualLevels = r.U8("residual layer");
+      if (h.residualLevels < 1 || h.residualLevels > InterSliceLevels(h.size.z))
+      {
+        throw FormatError(name + ": invalid inter-slice wavelet (" + std::to_string(h.residualLevels) + " levels; " +
+                          std::to_string(h.size.z) + " slices take 1 to " + std::to_string(InterSliceLevels(h.size.z)) +
+                          ")");
+      }
     }
     const uint32_t size = r.U32("residual layer");
     if (size == 0 || size > r.Left())

@@ -22,6 +22,7 @@
 #include "dcvEncoder.h"
 #include "dcvResidualLayer.h"
 #include "dcvFileFormat.h"
+#include "dcvInterSliceWavelet.h"
 #include "dcvPhantom.h"
 #include "dcvRefinementEngine.h"
 #include "dcvTestUtilities.h"
@@ -274,8 +275,8 @@ protected:
     const bool scaled = h.scale != GridScale{ { 1, 1, 1 } };
     const bool residual = h.residualStep > 0.0;
     const int  deflated = d.bytes[6] & 16; // the writer's choice; the pairs below check the inflated block
-    const int  flags =
-      (direction ? 1 : 0) | (h.metadata.empty() ? 0 : 2) | (scaled ? 4 : 0) | (residual ? 8 : 0) | deflated;
+    const int  flags = (direction ? 1 : 0) | (h.metadata.empty() ? 0 : 2) | (scaled ? 4 : 0) | (residual ? 8 : 0) |
+                      deflated | (h.residualLevels > 0 ? 32 : 0);
     const Tokens type = field("pixel_type");
     const Tokens mode = field("mode");
     EXPECT_EQ(field("version"), Tokens{ std::to_string(FileHeader::Version) });
@@ -295,8 +296,9 @@ protected:
     if (residual)
     {
       EXPECT_EQ(numbers(field("residual_step")), std::vector<double>{ h.residualStep });
+      EXPECT_EQ(field("residual_levels"), Tokens{ std::to_string(h.residualLevels) });
       EXPECT_EQ(field("residual_bytes"), Tokens{ std::to_string(h.residualLayer.size()) });
-      const std::vector<int32_t> samples = DecodeResidualLayer(h.residualLayer, h.size, path);
+      const std::vector<int32_t> samples = DecodeResidualLayer(h.residualLayer, h.size, path, h.residualLevels);
       std::vector<uint8_t>       le;
       for (int32_t v : samples)
         for (int b = 0; b < 4; ++b)
@@ -473,13 +475,19 @@ TEST_F(FormatSpecification, ResidualLayer)
     FileHeader           h;
     std::vector<uint8_t> payload;
     ParseFile(r.bytes, path, h, payload);
-    const auto samples = DecodeResidualLayer(h.residualLayer, h.size, path);
+    const auto        samples = DecodeResidualLayer(h.residualLayer, h.size, path, h.residualLevels);
+    const std::size_t bytes = h.residualLayer.size();
     for (Arrangement a : { Arrangement::Mosaic, Arrangement::Components })
     {
-      h.residualLayer = EncodeResidualLayer(samples, h.size, h.residualLayer.size(), Wavelet::Irreversible97, a);
-      ASSERT_FALSE(h.residualLayer.empty());
-      WriteFileAtomically(path, SerializeFile(h, payload));
-      ExpectAgreement(path);
+      // Without and with the inter-slice wavelet: the reference's inverse must give the library's samples.
+      for (int32_t levels : { 0, 2, InterSliceLevels(h.size.z) })
+      {
+        h.residualLevels = levels;
+        h.residualLayer = EncodeResidualLayer(samples, h.size, bytes, Wavelet::Irreversible97, a, levels);
+        ASSERT_FALSE(h.residualLayer.empty());
+        WriteFileAtomically(path, SerializeFile(h, payload));
+        ExpectAgreement(path);
+      }
     }
   }
 }

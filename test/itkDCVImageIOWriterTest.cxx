@@ -319,16 +319,24 @@ TEST(Encoder, SameFileWhateverTheNumberOfThreads)
   std::mt19937 random(7);
   for (itk::ImageRegionIteratorWithIndex<ImageType> it(image, image->GetBufferedRegion()); !it.IsAtEnd(); ++it)
     it.Set(uint8_t(std::clamp(int(it.Get()) + int(random() % 41) - 20, 0, 255)));
-  dcv::EncoderOptions options;
-  options.bitsPerVoxel = 0.15;
-  options.threads = 1;
-  const auto one = itk::DCVEncode(image.GetPointer(), options);
-  EXPECT_GT(one.header.numberOfPoints, 1000u);
-  for (unsigned threads : { 2u, 3u, 0u })
+  // The points alone, and with the residual layer (its inter-slice wavelet runs on threads too).
+  for (bool layer : { false, true })
   {
-    options.threads = threads;
-    const auto r = itk::DCVEncode(image.GetPointer(), options);
-    EXPECT_EQ(r.bytes, one.bytes) << threads << " threads";
-    EXPECT_EQ(r.psnr, one.psnr) << threads << " threads";
+    dcv::EncoderOptions options;
+    options.bitsPerVoxel = 0.15;
+    options.residualLayer = layer;
+    options.threads = 1;
+    const auto one = itk::DCVEncode(image.GetPointer(), options);
+    if (layer)
+      EXPECT_GT(one.header.residualLayer.size(), 0u);
+    else
+      EXPECT_GT(one.header.numberOfPoints, 1000u);
+    for (unsigned threads : { 2u, 3u, 0u })
+    {
+      options.threads = threads;
+      const auto r = itk::DCVEncode(image.GetPointer(), options);
+      EXPECT_EQ(r.bytes, one.bytes) << threads << " threads, layer " << layer;
+      EXPECT_EQ(r.psnr, one.psnr) << threads << " threads, layer " << layer;
+    }
   }
 }

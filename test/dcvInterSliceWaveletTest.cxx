@@ -1,0 +1,192 @@
+/*=========================================================================
+ *
+ *  Copyright NumFOCUS
+ *
+ *  Licensed under the Apache License, Version 2.0 (the "License");
+ *  you may not use this file except in compliance with the License.
+ *  You may obtain a copy of the License at
+ *
+ *         http://www.apache.org/licenses/LICENSE-2.0.txt
+ *
+ *  Unless required by applicable law or agreed to in writing, software
+ *  distributed under the License is distributed on an "AS IS" BASIS,
+ *  WITHOUT WARRANTIES OR CONDITIONS OF ANY KIND, either express or implied.
+ *  See the License for the specific language governing permissions and
+ *  limitations under the License.
+ *
+ *=========================================================================*/
+// The inter-slice wavelet of the residual layer: exactly invertible at every level count and slice count,
+// empty high bands where slices are alike, bounded on any decoded input, and carried by the container.
+#include "dcvFileFormat.h"
+#include "dcvInterSliceWavelet.h"
+#include "dcvResidualLayer.h"
+
+#include <gtest/gtest.h>
+
+#include <algorithm>
+#include <cmath>
+#include <limits>
+#include <random>
+
+namespace
+{
+using dcv::GridSize;
+
+std::vector<int32_t>
+Random(const GridSize & g, int32_t amplitude, unsigned seed)
+{
+  std::mt19937                           random(seed);
+  std::uniform_int_distribution<int32_t> value(-amplitude, amplitude);
+  std::vector<int32_t>                   s(g.NumberOfVoxels());
+  for (int32_t & v : s)
+    v = value(random);
+  return s;
+}
+
+/** Slices that change slowly along z, as in a near-isotropic volume. */
+std::vector<int32_t>
+SmoothAlongZ(const GridSize & g)
+{
+  std::vector<int32_t> s(g.NumberOfVoxels());
+  for (int32_t z = 0; z < g.z; ++z)
+    for (int32_t y = 0; y < g.y; ++y)
+      for (int32_t x = 0; x < g.x; ++x)
+        s[g.Offset(x, y, z)] =
+          int32_t(std::lround(400.0 * std::sin(0.4 * x) * std::cos(0.3 * y) * (1.0 + 0.02 * z) + 3.0 * z));
+  return s;
+}
+} // namespace
+
+TEST(InterSliceWavelet, LevelsNeedTwoSlicesAtEveryLevel)
+{
+  EXPECT_EQ(dcv::InterSliceLevels(1), 0);
+  EXPECT_EQ(dcv::InterSliceLevels(2), 1);
+  EXPECT_EQ(dcv::InterSliceLevels(3), 2); // 3 -> 2 -> 1
+  EXPECT_EQ(dcv::InterSliceLevels(4), 2);
+  EXPECT_EQ(dcv::InterSliceLevels(5), 3); // 5 -> 3 -> 2 -> 1
+  EXPECT_EQ(dcv::InterSliceLevels(28), 5);
+  EXPECT_EQ(dcv::InterSliceLevels(33), 6);
+  EXPECT_EQ(dcv::InterSliceLevels(65535), dcv::MaximumInterSliceLevels);
+  // Every weight is at least 1, so that weighting loses nothing.
+  for (int64_t w : dcv::LowBandWeight)
+    EXPECT_GE(w, 4096);
+  for (int64_t w : dcv::HighBandWeight)
+    EXPECT_GE(w, 4096);
+}
+
+TEST(InterSliceWavelet, ForwardThenInverseIsExact)
+{
+  for (int32_t z : { 2, 3, 4, 5, 7, 8, 13, 28, 38, 64 })
+  {
+    const GridSize g{ 5, 3, z };
+    for (int32_t levels = 0; levels <= dcv::InterSliceLevels(z); ++levels)
+    {
+      for (int32_t amplitude : { 1, 300, 32767 })
+      {
+        const std::vector<int32_t> original = Random(g, amplitude, unsigned(z * 100 + levels));
+        std::vector<int32_t>       s = original;
+        dcv::ForwardInterSlice(s, g, levels);
+        if (levels > 0 && amplitude > 1)
+          EXPECT_NE(s, original) << z << " slices, " << levels << " levels";
+        dcv::InverseInterSlice(s, g, levels);
+        EXPECT_EQ(s, original) << z << " slices, " << levels << " levels, amplitude " << amplitude;
+      }
+    }
+  }
+}
+
+TEST(InterSliceWavelet, HighBandsOfEqualSlicesAreEmpty)
+{
+  const GridSize       g{ 4, 4, 13 };
+  std::vector<int32_t> s(g.NumberOfVoxels());
+  for (int32_t z = 0; z < g.z; ++z)
+    for (int32_t i = 0; i < 16; ++i)
+      s[std::size_t(z) * 16 + std::size_t(i)] = 100 + i; // every slice the same
+  const int32_t levels = 3;
+  dcv::ForwardInterSlice(s, g, levels);
+  const int32_t lowSlices = 2; // ceil(13 / 8)
+  for (int32_t z = 0; z < g.z; ++z)
+  {
+    for (int32_t i = 0; i < 16; ++i)
+    {
+      const int32_t v = s[std::size_t(z) * 16 + std::size_t(i)];
+      if (z < lowSlices) // the low band: the slice times its weight
+        EXPECT_EQ(v, int32_t(std::lround((100 + i) * double(dcv::LowBandWeight[levels - 1]) / 4096.0)));
+      else
+        EXPECT_EQ(v, 0) << "slice " << z;
+    }
+  }
+  EXPECT_THROW(dcv::ForwardInterSlice(s, g, dcv::InterSliceLevels(13) + 1), std::invalid_argument);
+  EXPECT_THROW(dcv::ForwardInterSlice(s, GridSize{ 4, 4, 12 }, 1), std::invalid_argument);
+}
+
+TEST(InterSliceWavelet, InverseOfAnyDecodedSamplesStaysInRange)
+{
+  // A damaged layer may decode to extreme samples: the synthesis must neither overflow nor wrap.
+  const GridSize       g{ 3, 2, 64 };
+  std::vector<int32_t> s(g.NumberOfVoxels());
+  for (std::size_t i = 0; i < s.size(); ++i)
+    s[i] = (i % 3 == 0) ? std::numeric_limits<int32_t>::max() : (i % 3 == 1 ? std::numeric_limits<int32_t>::min() : 0);
+  dcv::InverseInterSlice(s, g, dcv::InterSliceLevels(64));
+  for (int32_t v : s)
+    EXPECT_GT(v, std::numeric_limits<int32_t>::min());
+}
+
+TEST(InterSliceWavelet, ResidualLayerIsLosslessWithTheReversibleWavelet)
+{
+  const GridSize             g{ 20, 18, 11 };
+  const std::vector<int32_t> samples = Random(g, 2000, 7);
+  for (dcv::Arrangement a : { dcv::Arrangement::Mosaic, dcv::Arrangement::Components })
+  {
+    for (int32_t levels = 1; levels <= dcv::InterSliceLevels(g.z); ++levels)
+    {
+      const auto codestream = dcv::EncodeResidualLayer(samples, g, 1 << 22, dcv::Wavelet::Reversible53, a, levels);
+      ASSERT_FALSE(codestream.empty());
+      EXPECT_EQ(dcv::DecodeResidualLayer(codestream, g, "x", levels), samples) << levels << " levels";
+    }
+  }
+}
+
+TEST(InterSliceWavelet, SlicesAlikeCodeCloserAtTheSameSize)
+{
+  // What the wavelet is for: at the same bytes, slices that change slowly along z decode closer with it.
+  const GridSize             g{ 32, 32, 32 };
+  const std::vector<int32_t> samples = SmoothAlongZ(g);
+  auto                       error = [&](int32_t levels) {
+    const auto codestream =
+      dcv::EncodeResidualLayer(samples, g, 1500, dcv::Wavelet::Irreversible97, dcv::Arrangement::Components, levels);
+    EXPECT_FALSE(codestream.empty());
+    EXPECT_LE(codestream.size(), 1500u);
+    const auto decoded = dcv::DecodeResidualLayer(codestream, g, "x", levels);
+    double     e = 0.0;
+    for (std::size_t i = 0; i < samples.size(); ++i)
+      e += double(samples[i] - decoded[i]) * double(samples[i] - decoded[i]);
+    return e;
+  };
+  const double without = error(0), with = error(4);
+  std::cout << "squared error at 1500 bytes: " << without << " without, " << with << " with 4 levels\n";
+  EXPECT_LT(with, 0.5 * without);
+}
+
+TEST(InterSliceWavelet, TheContainerCarriesTheLevels)
+{
+  dcv::FileHeader h;
+  h.size = GridSize{ 4, 4, 9 };
+  h.numberOfPoints = 8;
+  h.residualStep = 1.0;
+  h.residualLevels = 3;
+  h.residualLayer = { 1, 2, 3 };
+  const std::vector<uint8_t> payload(8, 0);
+  std::vector<uint8_t>       bytes = dcv::SerializeFile(h, payload);
+  dcv::FileHeader            back;
+  std::vector<uint8_t>       p;
+  dcv::ParseFile(bytes, "'f.dcv'", back, p);
+  EXPECT_EQ(back.residualLevels, 3);
+  EXPECT_EQ(back.residualLayer, h.residualLayer);
+  // Without the wavelet the file is a byte shorter and has no level field.
+  h.residualLevels = 0;
+  EXPECT_EQ(dcv::SerializeFile(h, payload).size() + 1, bytes.size());
+  // More levels than the slices take: refused when writing.
+  h.residualLevels = 5; // 9 slices take 4: 9, 5, 3, 2
+  EXPECT_THROW(dcv::SerializeFile(h, payload), std::invalid_argument);
+}
