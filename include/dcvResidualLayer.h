@@ -76,6 +76,9 @@ DecodeResidualLayer(const std::vector<uint8_t> & codestream, const GridSize & gr
 /** Bytes a residual layer adds to a file besides its codestream (its step and length). */
 constexpr std::size_t ResidualLayerFieldBytes = 12;
 
+/** Bytes the levels of an inter-slice wavelet add (format flag bit 5). */
+constexpr std::size_t InterSliceLevelsFieldBytes = 1;
+
 /** The residual step: 1 for integer data whose range fits 14 bits, the range over 2^14 otherwise
  * (whole for integer data), so that every sample fits 15 signed bits. */
 DelaunayCompression_EXPORT double
@@ -100,7 +103,7 @@ struct ResidualCoding
 };
 
 /** Codes the spline's residual against `voxels` (the original, laid out as the grid) in at most
- * `maximumBytes` bytes, one coding at a time, so that the caller chooses the next coding from the errors
+ * `maximumBytes` bytes (the codestream and, with an inter-slice wavelet, its levels), one coding at a time, so that the caller chooses the next coding from the errors
  * so far; keeps the coding that decodes closest, decoded as a decoder will. `voxels` must outlive it. */
 class DelaunayCompression_EXPORT ResidualSearch
 {

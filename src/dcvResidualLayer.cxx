@@ -164,6 +164,23 @@ Threads()
   return int(CurrentThreads()); // the encoder's --threads; the codestream does not depend on it
 }
 
+/** Removes the comment (COM) segments of a codestream's main header: bytes for nothing in a budget. */
+void
+StripComments(std::vector<uint8_t> & codestream)
+{
+  std::size_t p = 2; // after SOC
+  while (p + 4 <= codestream.size() && codestream[p] == 0xff && codestream[p + 1] != 0x90) // up to the first SOT
+  {
+    const std::size_t length = (std::size_t(codestream[p + 2]) << 8) | codestream[p + 3];
+    if (length < 2 || p + 2 + length > codestream.size())
+      return;
+    if (codestream[p + 1] == 0x64)
+      codestream.erase(codestream.begin() + std::ptrdiff_t(p), codestream.begin() + std::ptrdiff_t(p + 2 + length));
+    else
+      p += 2 + length;
+  }
+}
+
 /** One encode at a target size of `components` planes of width x height samples, one after the other in
  * `planes`; the codestream (empty when OpenJPEG fails). A fresh image each time: OpenJPEG's encoder may
  * take over the image's sample buffers. */
@@ -196,6 +213,10 @@ EncodeOnce(const std::vector<int32_t> & planes, int components, int64_t width, i
   p.irreversible = wavelet == Wavelet::Irreversible97 ? 1 : 0;
   p.numresolution = resolutions;
   p.tcp_mct = 0; // slices are not colour channels
+  // OpenJPEG writes "Created by OpenJPEG version ..." (39 bytes) without a comment of its own; an empty
+  // one is 6 bytes, and StripComments removes those.
+  char noComment[] = "";
+  p.cp_comment = noComment;
   Codec       codec(opj_create_compress(OPJ_CODEC_J2K));
   std::string error;
   Quiet(codec.get(), error);
@@ -209,6 +230,7 @@ EncodeOnce(const std::vector<int32_t> & planes, int components, int64_t width, i
   {
     return {};
   }
+  StripComments(buffer.bytes);
   return std::move(buffer.bytes);
 }
 } // namespace
@@ -418,8 +440,12 @@ ResidualSearch::ResidualSearch(const float * voxels, PixelType type, const Appro
 double
 ResidualSearch::Try(const ResidualCoding & coding)
 {
+  if (maximumBytes <= InterSliceLevelsFieldBytes)
+    return std::numeric_limits<double>::infinity();
+  // The levels byte comes out of the same budget.
+  const std::size_t    limit = maximumBytes - (coding.levels > 0 ? InterSliceLevelsFieldBytes : 0);
   std::vector<uint8_t> codestream =
-    EncodeResidualLayer(samples, grid, maximumBytes, coding.wavelet, coding.arrangement, coding.levels);
+    EncodeResidualLayer(samples, grid, limit, coding.wavelet, coding.arrangement, coding.levels);
   if (codestream.empty())
     return std::numeric_limits<double>::infinity();
   Residual residual{ best.step, DecodeResidualLayer(codestream, grid, "residual layer", coding.levels) };
