@@ -103,8 +103,9 @@ struct ResidualCoding
 };
 
 /** Codes the spline's residual against `voxels` (the original, laid out as the grid) in at most
- * `maximumBytes` bytes (the codestream and, with an inter-slice wavelet, its levels), one coding at a time, so that the caller chooses the next coding from the errors
- * so far; keeps the coding that decodes closest, decoded as a decoder will. `voxels` must outlive it. */
+ * `maximumBytes` bytes (the codestream and, with an inter-slice wavelet, its levels), one coding at a time, so that the
+ * caller chooses the next coding from the errors so far; keeps the coding that decodes closest, decoded as a decoder
+ * will. `voxels` must outlive it. */
 class DelaunayCompression_EXPORT ResidualSearch
 {
 public:

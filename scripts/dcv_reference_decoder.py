@@ -68,6 +68,9 @@ FLAG_SCALE = 4
 FLAG_RESIDUAL = 8
 FLAG_DEFLATED = 16
 FLAG_INTER_SLICE = 32
+FLAG_AXIS_DIRECTION = 64
+# Section "Header", direction code: row r is +-1 at column AXIS_PERMUTATIONS[code & 7][r].
+AXIS_PERMUTATIONS = ((0, 1, 2), (0, 2, 1), (1, 0, 2), (1, 2, 0), (2, 0, 1), (2, 1, 0))
 # Section "Inter-slice wavelet": band weights in 1/4096 (low band after l levels, high band of level k).
 LOW_BAND_WEIGHT = (5917, 8012, 11201, 15795, 22321, 31560)
 HIGH_BAND_WEIGHT = (4096, 4639, 6084, 8428, 11856, 16744)
@@ -115,16 +118,27 @@ def parse_container(data):
     pixel_type, flags, mode = f.unpack("3B", "header")
     if pixel_type not in PIXEL_TYPES:
         raise DamagedFile("unknown pixel type code %d" % pixel_type)
-    if flags & ~(FLAG_DIRECTION | FLAG_METADATA | FLAG_SCALE | FLAG_RESIDUAL | FLAG_DEFLATED | FLAG_INTER_SLICE) or \
+    if flags & ~(FLAG_DIRECTION | FLAG_METADATA | FLAG_SCALE | FLAG_RESIDUAL | FLAG_DEFLATED | FLAG_INTER_SLICE |
+                 FLAG_AXIS_DIRECTION) or \
             (flags & FLAG_DEFLATED and not flags & FLAG_METADATA) or \
-            (flags & FLAG_INTER_SLICE and not flags & FLAG_RESIDUAL):
+            (flags & FLAG_INTER_SLICE and not flags & FLAG_RESIDUAL) or \
+            (flags & FLAG_AXIS_DIRECTION and not flags & FLAG_DIRECTION):
         raise DamagedFile("unknown header flags %d" % flags)
     size = f.unpack("3H", "header")
     if min(size) < 2:
         raise DamagedFile("absurd volume size %dx%dx%d (each axis needs at least 2 voxels)" % size)
     spacing = f.unpack("3d", "header")
     origin = f.unpack("3d", "header")
-    direction = f.unpack("9d", "header") if flags & FLAG_DIRECTION else IDENTITY
+    if flags & FLAG_AXIS_DIRECTION:
+        (code,) = f.unpack("B", "header")
+        if code & 7 > 5 or code > 63:
+            raise DamagedFile("invalid direction code %d" % code)
+        direction = [0.0] * 9
+        for row in range(3):
+            direction[3 * row + AXIS_PERMUTATIONS[code & 7][row]] = -1.0 if code & (8 << row) else 1.0
+        direction = tuple(direction)
+    else:
+        direction = f.unpack("9d", "header") if flags & FLAG_DIRECTION else IDENTITY
     scale = f.unpack("3B", "header") if flags & FLAG_SCALE else (1, 1, 1)
     if not all(1 <= s <= 16 for s in scale):
         raise DamagedFile("invalid Delaunay scale")

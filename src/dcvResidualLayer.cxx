@@ -168,7 +168,7 @@ Threads()
 void
 StripComments(std::vector<uint8_t> & codestream)
 {
-  std::size_t p = 2; // after SOC
+  std::size_t p = 2;                                                                       // after SOC
   while (p + 4 <= codestream.size() && codestream[p] == 0xff && codestream[p + 1] != 0x90) // up to the first SOT
   {
     const std::size_t length = (std::size_t(codestream[p + 2]) << 8) | codestream[p + 3];

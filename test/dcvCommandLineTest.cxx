@@ -384,7 +384,8 @@ TEST_F(CommandLine, DecompressWritesCompressedVolumes)
   const std::string phantom = Path("phantom.nrrd");
   ASSERT_EQ(RunDcv("phantom " + phantom + " --size 40").status, 0);
   EXPECT_NE(dcv::test::FileBytes(phantom).find("encoding: gzip"), std::string::npos);
-  ASSERT_EQ(RunDcv("compress " + phantom + " " + Path("p.dcv") + " --bpv 0.1").status, 0);
+  // Points only: a piecewise-linear volume, which gzip shrinks well below its raw size.
+  ASSERT_EQ(RunDcv("compress " + phantom + " " + Path("p.dcv") + " --bpv 0.1 --no-residual-layer").status, 0);
   ASSERT_EQ(RunDcv("decompress " + Path("p.dcv") + " " + Path("d.nrrd")).status, 0);
   EXPECT_NE(dcv::test::FileBytes(Path("d.nrrd")).find("encoding: gzip"), std::string::npos);
   EXPECT_LT(fs::file_size(Path("d.nrrd")), 40u * 40 * 40 / 2);

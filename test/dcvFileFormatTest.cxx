@@ -350,3 +350,55 @@ TEST(FileFormat, MetadataIsDeflatedWhenThatIsSmaller)
     damaged[damaged.size() - 4 + i] = uint8_t(crc >> (8 * i));
   EXPECT_NE(ParseError(damaged).find("metadata"), std::string::npos) << ParseError(damaged);
 }
+
+TEST(FileFormat, AxisDirectionsTakeOneByte)
+{
+  // Every flip and swap of the axes (48 signed permutations, identity aside) in one byte, exactly.
+  const FileHeader           plain = SampleHeader(false);
+  const std::vector<uint8_t> some(64, 0); // room for the points the header claims
+  const std::size_t          identityBytes = SerializeFile(plain, some).size();
+  int                        permutations = 0;
+  for (int a = 0; a < 3; ++a)
+    for (int b = 0; b < 3; ++b)
+      for (int c = 0; c < 3; ++c)
+      {
+        if (a == b || b == c || a == c)
+          continue;
+        for (int signs = 0; signs < 8; ++signs)
+        {
+          FileHeader h = plain;
+          h.direction = { 0, 0, 0, 0, 0, 0, 0, 0, 0 };
+          h.direction[std::size_t(a)] = (signs & 1) ? -1.0 : 1.0;
+          h.direction[std::size_t(3 + b)] = (signs & 2) ? -1.0 : 1.0;
+          h.direction[std::size_t(6 + c)] = (signs & 4) ? -1.0 : 1.0;
+          const auto bytes = SerializeFile(h, some);
+          const bool identity = a == 0 && b == 1 && c == 2 && signs == 0;
+          EXPECT_EQ(bytes.size(), identityBytes + (identity ? 0 : 1));
+          FileHeader           back;
+          std::vector<uint8_t> payload;
+          ParseFile(bytes, "x.dcv", back, payload);
+          EXPECT_EQ(back.direction, h.direction);
+          ++permutations;
+        }
+      }
+  EXPECT_EQ(permutations, 48);
+  // Anything else (a rotation, a permutation off by one ulp) keeps its 9 doubles, exactly.
+  FileHeader h = plain;
+  h.direction = { 0.9999999404, 0, 0, 0, 0, -1, 0, -1, 0 };
+  const auto bytes = SerializeFile(h, some);
+  EXPECT_EQ(bytes.size(), identityBytes + 72);
+  FileHeader           back;
+  std::vector<uint8_t> payload;
+  ParseFile(bytes, "x.dcv", back, payload);
+  EXPECT_EQ(back.direction, h.direction);
+  // A code naming no permutation is refused, even with a recomputed CRC-32.
+  h.direction = { -1, 0, 0, 0, 1, 0, 0, 0, 1 };
+  auto           damaged = SerializeFile(h, some);
+  const uint32_t at = 62; // the code follows the origin
+  ASSERT_EQ(damaged[at], 8);
+  damaged[at] = 7;
+  const uint32_t crc = uint32_t(crc32(0L, damaged.data(), uInt(damaged.size() - 4)));
+  for (int i = 0; i < 4; ++i)
+    damaged[damaged.size() - 4 + i] = uint8_t(crc >> (8 * i));
+  EXPECT_NE(ParseError(damaged).find("invalid direction code 7"), std::string::npos) << ParseError(damaged);
+}

@@ -274,9 +274,10 @@ protected:
     const bool direction = h.direction != std::array<double, 9>{ 1, 0, 0, 0, 1, 0, 0, 0, 1 };
     const bool scaled = h.scale != GridScale{ { 1, 1, 1 } };
     const bool residual = h.residualStep > 0.0;
-    const int  deflated = d.bytes[6] & 16; // the writer's choice; the pairs below check the inflated block
-    const int  flags = (direction ? 1 : 0) | (h.metadata.empty() ? 0 : 2) | (scaled ? 4 : 0) | (residual ? 8 : 0) |
-                      deflated | (h.residualLevels > 0 ? 32 : 0);
+    const int  deflated = d.bytes[6] & 16;      // the writer's choice; the pairs below check the inflated block
+    const int  axisDirection = d.bytes[6] & 64; // the writer's choice; the matrix is checked below
+    const int  flags = (direction ? 1 : 0) | axisDirection | (h.metadata.empty() ? 0 : 2) | (scaled ? 4 : 0) |
+                      (residual ? 8 : 0) | deflated | (h.residualLevels > 0 ? 32 : 0);
     const Tokens type = field("pixel_type");
     const Tokens mode = field("mode");
     EXPECT_EQ(field("version"), Tokens{ std::to_string(FileHeader::Version) });
@@ -383,6 +384,9 @@ TEST_F(FormatSpecification, DirectionAndMetadata)
                  { "", "an empty key" },
                  { "empty value", "" } };
   ExpectAgreement(WriteDcv("oriented.dcv", h, Phantom(GridSize{ 24, 30, 21 }, Mode::Best, 300, -3.5, 0.5)));
+  // Flipped and swapped axes (LPS against RAS): the one-byte direction code.
+  h.direction = { 0, -1, 0, -1, 0, 0, 0, 0, 1 };
+  ExpectAgreement(WriteDcv("flipped.dcv", h, Phantom(GridSize{ 24, 30, 21 }, Mode::Best, 300, -3.5, 0.5)));
 }
 
 TEST_F(FormatSpecification, ScaledDelaunaySpace)

@@ -50,7 +50,12 @@ Info(const std::string & input)
   if (h.residualLayer.empty())
     std::cout << "none\n";
   else
-    std::cout << h.residualLayer.size() << " bytes of JPEG 2000, step " << h.residualStep << "\n";
+  {
+    std::cout << h.residualLayer.size() << " bytes of JPEG 2000, step " << h.residualStep;
+    if (h.residualLevels > 0)
+      std::cout << ", inter-slice wavelet of " << h.residualLevels << " levels";
+    std::cout << "\n";
+  }
   std::cout << "memory to decode: " << FormatByteCount(DecodingMemory(h, DecodeOutput::Volume)) << " (mesh alone "
             << FormatByteCount(DecodingMemory(h, DecodeOutput::Mesh)) << ")\n";
   for (const auto & kv : h.metadata)
