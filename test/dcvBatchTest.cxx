@@ -17,6 +17,7 @@
  *=========================================================================*/
 // dcv batch: a tree of small volumes (one of them broken, one file to skip) and, when ../shared is
 // there, DICOM series; a failure named while the others complete, resume, --jobs and --shard.
+#include "dcvDicomTestUtilities.h"
 #include "dcvFileFormat.h"
 #include "dcvTestUtilities.h"
 
@@ -416,6 +417,40 @@ TEST_F(Batch, DicomSeriesAreItemsNamedByDirectoryAndSeriesInstanceUid)
                 std::make_pair(std::string("DICOM SeriesInstanceUID"), name.substr(name.rfind('_') + 1)));
     EXPECT_NE(stored, file.header.metadata.end()) << name;
   }
+}
+
+TEST(BatchResample, ATiltedSeriesFailsNamingTheOptionAndIsResampledWithIt)
+{
+  const dcv::test::TemporaryDirectory directory;
+  const std::string                   tree = directory / "tree";
+  const double                        c = std::cos(15.0 * 3.14159265358979323846 / 180.0);
+  const double                        s = std::sin(15.0 * 3.14159265358979323846 / 180.0);
+  std::vector<std::array<double, 3>>  positions;
+  std::vector<double>                 z;
+  for (int k = 0; k < 8; ++k)
+  {
+    positions.push_back({ { 0.0, 0.0, 3.0 * k } });
+    z.push_back(3.0 * k);
+  }
+  const auto field = [](int i, int j, int k, const std::array<double, 3> &) { return -500.0 + 20.0 * (i + j + k); };
+  dcv::test::WriteCtSeries(tree + "/tilted", 24, positions, { { 1, 0, 0, 0, c, s } }, field);
+  dcv::test::WriteCtSeries(tree + "/axial", 24, dcv::test::AxialPositions(z), dcv::test::Axial, field);
+  const std::string uid = "1.2.826.0.1.3680043.2.1125.77.2"; // WriteCtSeries' series
+  Result            r = RunDcv("batch " + tree + " " + (directory / "out") + " --points 100");
+  EXPECT_EQ(r.status, 1) << r.output;
+  EXPECT_TRUE(Contains(r.output, "tilted_" + uid)) << r.output;
+  EXPECT_TRUE(Contains(r.output, "gantry tilt?)")) << r.output;
+  EXPECT_TRUE(Contains(r.output, "--resample resamples it onto a regular grid instead")) << r.output;
+  EXPECT_EQ(Summary(directory / "out/batch-summary.csv").at("axial_" + uid)[6], "ok");
+
+  r = RunDcv("batch " + tree + " " + (directory / "out") + " --points 100 --resample");
+  EXPECT_EQ(r.status, 0) << r.output;
+  const auto summary = Summary(directory / "out/batch-summary.csv");
+  EXPECT_EQ(summary.at("axial_" + uid)[6], "skipped (exists)");
+  EXPECT_EQ(summary.at("tilted_" + uid)[6],
+            "ok (resampled: gantry tilt 15 degrees -> slices along the normal of the orientation, 2.898 mm apart, 8 "
+            "slices)");
+  EXPECT_EQ(dcv::ReadCompressedFile(directory / ("out/tilted_" + uid + ".dcv")).header.size.z, 8);
 }
 
 } // namespace

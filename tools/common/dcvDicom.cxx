@@ -68,13 +68,45 @@ ReadHeader(const std::string & file)
 }
 
 std::string
-Millimetres(double v)
+Number(double v)
 {
   std::ostringstream s;
   s.precision(4);
-  s << v << " mm";
+  s << v;
   return s.str();
 }
+
+std::string
+Millimetres(double v)
+{
+  return Number(v) + " mm";
+}
+
+double
+Dot(const std::array<double, 3> & a, const std::array<double, 3> & b)
+{
+  return a[0] * b[0] + a[1] * b[1] + a[2] * b[2];
+}
+
+std::array<double, 3>
+Minus(const std::array<double, 3> & a, const std::array<double, 3> & b)
+{
+  return { { a[0] - b[0], a[1] - b[1], a[2] - b[2] } };
+}
+
+std::array<double, 3>
+Scaled(const std::array<double, 3> & a, double f)
+{
+  return { { a[0] * f, a[1] * f, a[2] * f } };
+}
+
+double
+Norm(const std::array<double, 3> & a)
+{
+  return std::sqrt(Dot(a, a));
+}
+
+const char * const ResampleHint = "; --resample resamples it onto a regular grid instead";
 } // namespace
 
 bool
@@ -248,6 +280,7 @@ ReadDicomSlices(const DicomSeries & series)
       s.orientation[d] = io->GetDirection(0)[d];
       s.orientation[3 + d] = io->GetDirection(1)[d];
     }
+    s.pixelSpacing = { { io->GetSpacing(0), io->GetSpacing(1) } };
     s.columns = unsigned(io->GetDimensions(0));
     s.rows = unsigned(io->GetDimensions(1));
     slices.push_back(s);
@@ -255,8 +288,8 @@ ReadDicomSlices(const DicomSeries & series)
   return slices;
 }
 
-void
-CheckDicomSlices(const std::string & name, const std::vector<DicomSlice> & slices)
+DicomResampling
+CheckDicomSlices(const std::string & name, const std::vector<DicomSlice> & slices, bool resample)
 {
   if (slices.size() < 2)
   {
@@ -284,52 +317,155 @@ CheckDicomSlices(const std::string & name, const std::vector<DicomSlice> & slice
   const std::array<double, 3> normal{
     { o[1] * o[5] - o[2] * o[4], o[2] * o[3] - o[0] * o[5], o[0] * o[4] - o[1] * o[3] }
   };
+  // Each slice's position relative to the first: along the normal, and the offset across it.
+  std::vector<double>                along(slices.size(), 0.0);
+  std::vector<std::array<double, 3>> across(slices.size(), { { 0, 0, 0 } });
+  for (std::size_t i = 1; i < slices.size(); ++i)
+  {
+    const auto d = Minus(slices[i].position, first.position);
+    along[i] = Dot(d, normal);
+    across[i] = Minus(d, Scaled(normal, along[i]));
+  }
+  bool                tilted = false;
   std::vector<double> gaps;
   for (std::size_t i = 1; i < slices.size(); ++i)
   {
-    std::array<double, 3> step;
-    double                along = 0.0;
-    for (int d = 0; d < 3; ++d)
+    const double gap = along[i] - along[i - 1];
+    const double offset = Norm(Minus(across[i], across[i - 1]));
+    if (offset > 1e-3 * std::max(1.0, std::abs(gap)) && !tilted)
     {
-      step[d] = slices[i].position[d] - slices[i - 1].position[d];
-      along += step[d] * normal[d];
+      if (!resample)
+      {
+        throw Failure(name + ": slices " + std::to_string(i) + " and " + std::to_string(i + 1) +
+                      " are not stacked along the normal of their orientation (offset " + Millimetres(offset) +
+                      " across it: gantry tilt?); a tilted series is not a volume on a grid" + ResampleHint);
+      }
+      tilted = true;
     }
-    double across = 0.0;
-    for (int d = 0; d < 3; ++d)
-    {
-      across += (step[d] - along * normal[d]) * (step[d] - along * normal[d]);
-    }
-    across = std::sqrt(across);
-    if (across > 1e-3 * std::max(1.0, std::abs(along)))
-    {
-      throw Failure(name + ": slices " + std::to_string(i) + " and " + std::to_string(i + 1) +
-                    " are not stacked along the normal of their orientation (offset " + Millimetres(across) +
-                    " across it: gantry tilt?); a tilted series is not a volume on a grid");
-    }
-    gaps.push_back(along);
+    gaps.push_back(gap);
   }
   std::vector<double> sorted(gaps);
   std::sort(sorted.begin(), sorted.end());
   const double usual = sorted[sorted.size() / 2];
-  if (!(std::abs(usual) > 1e-6))
+  if (!(std::abs(usual) > 1e-6) || (resample && !(sorted.front() * usual > 1e-12 && sorted.back() * usual > 1e-12)))
   {
     throw Failure(name + ": slices at the same position (duplicates?)");
   }
+  bool uneven = false;
   for (std::size_t i = 0; i < gaps.size(); ++i)
   {
     if (std::abs(gaps[i] - usual) > 1e-3 * std::abs(usual) + 1e-4)
     {
       const double ratio = gaps[i] / usual;
       const bool   missing = ratio > 1.5 && std::abs(ratio - std::round(ratio)) < 0.05;
-      throw Failure(
-        name + (missing
-                  ? ": missing slice" + std::string(std::round(ratio) > 2.0 ? "s" : "") + " between slices " +
-                      std::to_string(i + 1) + " and " + std::to_string(i + 2) + " (a gap of " + Millimetres(gaps[i]) +
-                      " where slices are " + Millimetres(usual) + " apart)"
-                  : ": uneven slice spacing: " + Millimetres(gaps[i]) + " between slices " + std::to_string(i + 1) +
-                      " and " + std::to_string(i + 2) + ", " + Millimetres(usual) + " elsewhere"));
+      // Resampling would make up the missing slices: they stay refused.
+      if (missing || !resample)
+      {
+        throw Failure(
+          name + (missing
+                    ? ": missing slice" + std::string(std::round(ratio) > 2.0 ? "s" : "") + " between slices " +
+                        std::to_string(i + 1) + " and " + std::to_string(i + 2) + " (a gap of " + Millimetres(gaps[i]) +
+                        " where slices are " + Millimetres(usual) + " apart)"
+                    : ": uneven slice spacing: " + Millimetres(gaps[i]) + " between slices " + std::to_string(i + 1) +
+                        " and " + std::to_string(i + 2) + ", " + Millimetres(usual) + " elsewhere" + ResampleHint));
+      }
+      uneven = true;
     }
   }
+  DicomResampling r;
+  if (!tilted && !uneven)
+  {
+    return r;
+  }
+  // The grid's third axis points from the first slice to the last, as ITK's series reader orients it.
+  const double sign = usual > 0.0 ? 1.0 : -1.0;
+  for (auto & a : along)
+  {
+    a *= sign;
+  }
+  r.needed = true;
+  r.uneven = uneven;
+  r.tilted = tilted;
+  r.along = along;
+  r.origin = first.position;
+  r.rows = first.rows;
+  r.columns = first.columns;
+  for (int d = 0; d < 3; ++d)
+  {
+    r.direction[3 * d + 0] = o[d];
+    r.direction[3 * d + 1] = o[3 + d];
+    r.direction[3 * d + 2] = sign * normal[d];
+  }
+  if (tilted)
+  {
+    // One gantry tilt offsets the slices across the normal in proportion to their distance along it:
+    // the least-squares offset per mm, which every slice must follow within a twentieth of a pixel.
+    double tt = 0.0;
+    for (std::size_t i = 0; i < slices.size(); ++i)
+    {
+      tt += along[i] * along[i];
+      for (int d = 0; d < 3; ++d)
+        r.shear[d] += along[i] * across[i][d];
+    }
+    r.shear = Scaled(r.shear, 1.0 / tt);
+    const double tolerance = 0.05 * std::min(first.pixelSpacing[0], first.pixelSpacing[1]);
+    for (std::size_t i = 0; i < slices.size(); ++i)
+    {
+      if (Norm(Minus(across[i], Scaled(r.shear, along[i]))) > tolerance)
+      {
+        throw Failure(name + ": the slices are offset across the normal of their orientation, but not in " +
+                      "proportion to their distance along it (slice " + std::to_string(i + 1) +
+                      "): not one gantry tilt, so not resampled");
+      }
+    }
+  }
+  const double extent = along.back();
+  std::string  spacing;
+  if (uneven)
+  {
+    // The smallest gap, so that no part of the series is sampled more coarsely than it was, shortened
+    // where needed so that the grid ends on the last slice.
+    double smallest = std::abs(gaps.front()), largest = smallest;
+    for (const double g : gaps)
+    {
+      smallest = std::min(smallest, std::abs(g));
+      largest = std::max(largest, std::abs(g));
+    }
+    const double intervals = std::max(1.0, std::ceil(extent / smallest - 1e-3));
+    r.spacing[2] = extent / intervals;
+    r.slices = std::size_t(intervals) + 1;
+    spacing = Millimetres(r.spacing[2]) + (std::abs(r.spacing[2] - smallest) < 1e-6
+                                             ? std::string(" (the smallest gap)")
+                                             : " (the smallest gap, " + Millimetres(smallest) + ", fitted to the " +
+                                                 Millimetres(extent) + " from the first slice to the last)");
+    r.description = "uneven slice spacing " + Number(smallest) + "-" + Millimetres(largest);
+    // A stray near-duplicate would otherwise make a volume of thousands of slices.
+    if (r.slices > 4 * slices.size())
+    {
+      throw Failure(name + ": " + r.description + "; resampling onto the smallest gap would make " +
+                    std::to_string(r.slices) + " slices of " + std::to_string(slices.size()) + ", so not resampled");
+    }
+  }
+  else
+  {
+    r.spacing[2] = extent / double(slices.size() - 1);
+    r.slices = slices.size();
+    spacing = Millimetres(r.spacing[2]) + " apart";
+  }
+  r.spacing[0] = first.pixelSpacing[0];
+  r.spacing[1] = first.pixelSpacing[1];
+  if (tilted)
+  {
+    const double degrees = std::atan(Norm(r.shear)) * 180.0 / 3.14159265358979323846;
+    r.description = "gantry tilt " + Number(degrees) + " degrees" + (uneven ? " and " + r.description : "") +
+                    " -> slices along the normal of the orientation, " + spacing;
+  }
+  else
+  {
+    r.description += " -> " + spacing;
+  }
+  r.description += ", " + std::to_string(r.slices) + " slices";
+  return r;
 }
 
 } // namespace dcv::tools

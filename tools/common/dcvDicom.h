@@ -20,10 +20,16 @@
 
 // DICOM series in: the series of a directory (or of one DICOM file), the choice among several, the
 // checks a derived volume needs (slices stacked along their normal, even spacing, none missing, one
-// size and orientation), and the attributes a derived series must carry, as .dcv metadata.
+// size and orientation) or, when asked, the resampling of a tilted or unevenly spaced series onto a
+// grid, and the attributes a derived series must carry, as .dcv metadata.
 #include "dcvFileFormat.h"
 
+#include "itkImage.h"
+
+#include <algorithm>
 #include <array>
+#include <cmath>
+#include <limits>
 #include <string>
 #include <utility>
 #include <vector>
@@ -71,6 +77,7 @@ struct DicomSlice
 {
   std::array<double, 3> position{ { 0, 0, 0 } };
   std::array<double, 6> orientation{ { 1, 0, 0, 0, 1, 0 } };
+  std::array<double, 2> pixelSpacing{ { 1, 1 } }; // along a row, down a column
   unsigned              rows{ 0 };
   unsigned              columns{ 0 };
 };
@@ -79,11 +86,61 @@ struct DicomSlice
 std::vector<DicomSlice>
 ReadDicomSlices(const DicomSeries & series);
 
+/** How a tilted or unevenly spaced series is put on a grid (ReadResampledDicomSeries): slices `spacing` mm
+ * apart along the normal of the orientation, from the first slice's plane to the last one's. */
+struct DicomResampling
+{
+  bool                  needed{ false };
+  bool                  tilted{ false };        // gantry tilt: the slices are offset across the normal
+  bool                  uneven{ false };        // uneven spacing: slices interpolated onto the new spacing
+  std::string           description;            // what was done, e.g. "uneven slice spacing 5-7.5 mm -> 5 mm, ..."
+  std::array<double, 3> origin{ { 0, 0, 0 } };  // the first slice's position
+  std::array<double, 9> direction{ {} };        // row major; columns: row, column, normal towards the last slice
+  std::array<double, 3> spacing{ { 1, 1, 1 } }; // pixel spacing, then the new slice spacing
+  std::array<double, 3> shear{ { 0, 0, 0 } };   // tilt: offset across the normal per mm along it
+  std::vector<double>   along;                  // each slice's distance from the first along the normal
+  std::size_t           slices{ 0 };            // of the grid
+  unsigned              rows{ 0 };
+  unsigned              columns{ 0 };
+};
+
 /** Refuses, with a message naming the series and what was found, slices of different size or
  * orientation, slices not stacked along the normal of their orientation (gantry tilt), uneven spacing
- * and missing slices. */
-void
-CheckDicomSlices(const std::string & name, const std::vector<DicomSlice> & slices);
+ * and missing slices. With `resample`, a tilted or unevenly spaced series (not one with missing slices)
+ * is accepted instead, and the result says how to put it on a grid; without it, the messages of those
+ * two refusals name --resample. */
+DicomResampling
+CheckDicomSlices(const std::string & name, const std::vector<DicomSlice> & slices, bool resample = false);
+
+/** Reads the series (as floats, rescaled) and resamples it as `r` says: linearly between neighbouring
+ * slices onto the new spacing, then, for a tilted series, onto the grid of the orientation's normal with
+ * ITK's ResampleImageFilter (linear interpolation; where no slice reaches: the series' minimum). */
+itk::Image<float, 3>::Pointer
+ReadResampledDicomSeries(const DicomSeries & series, const DicomResampling & r);
+
+/** `image` rounded (integer types) and clamped to the range of T, with its geometry. */
+template <typename T>
+typename itk::Image<T, 3>::Pointer
+RoundedImage(const itk::Image<float, 3> * image)
+{
+  auto out = itk::Image<T, 3>::New();
+  out->CopyInformation(image);
+  out->SetRegions(image->GetLargestPossibleRegion());
+  out->Allocate();
+  const std::size_t n = image->GetLargestPossibleRegion().GetNumberOfPixels();
+  const float *     in = image->GetBufferPointer();
+  T *               to = out->GetBufferPointer();
+  for (std::size_t i = 0; i < n; ++i)
+  {
+    double v = in[i];
+    if (std::numeric_limits<T>::is_integer)
+    {
+      v = std::clamp(std::round(v), double(std::numeric_limits<T>::lowest()), double(std::numeric_limits<T>::max()));
+    }
+    to[i] = T(v);
+  }
+  return out;
+}
 
 } // namespace dcv::tools
 

@@ -70,6 +70,50 @@ struct PixelEncoding
   unsigned bitsStored{ 16 };
 };
 
+double
+StoredMin(const PixelEncoding & e)
+{
+  return e.isSigned ? -std::ldexp(1.0, int(e.bitsStored) - 1) : 0.0;
+}
+
+double
+StoredMax(const PixelEncoding & e)
+{
+  return e.isSigned ? std::ldexp(1.0, int(e.bitsStored) - 1) - 1.0 : std::ldexp(1.0, int(e.bitsStored)) - 1.0;
+}
+
+/** Moves the rescale intercept by whole slopes (and adds bits, up to 16, only when the range is wider
+ * than the original's bits hold) so that every decoded value in [lo, hi] is stored as it is: the spline
+ * and the residual layer may undershoot the original's stored range (below -1024 HU for 12-bit CT), and
+ * clamping those values would make the series differ from the decoded volume, and from the PSNR that
+ * compress printed. */
+void
+KeepDecodedRange(PixelEncoding & e, double lo, double hi)
+{
+  if (!(lo <= hi) || !(e.slope > 0.0))
+  {
+    return;
+  }
+  const double first = std::round((lo - e.intercept) / e.slope);
+  const double last = std::round((hi - e.intercept) / e.slope);
+  if (first >= StoredMin(e) && last <= StoredMax(e))
+  {
+    return;
+  }
+  while (e.bitsStored < 16 && last - first > StoredMax(e) - StoredMin(e))
+  {
+    ++e.bitsStored;
+  }
+  if (first < StoredMin(e))
+  {
+    e.intercept -= e.slope * (StoredMin(e) - first);
+  }
+  else if (last > StoredMax(e))
+  {
+    e.intercept += e.slope * std::min(last - StoredMax(e), first - StoredMin(e));
+  }
+}
+
 void
 Put(DcmDataset & d, const DcmTagKey & key, const std::string & value)
 {
@@ -119,6 +163,15 @@ WriteDicomSeries(const FileHeader & header, std::size_t compressedBytes,
   }
 
   // Stored pixels: the original's encoding when the volume came from DICOM, else the range in 16 bits.
+  double              lo = std::numeric_limits<double>::infinity(), hi = -lo;
+  std::vector<double> values;
+  for (int32_t z = 0; z < nz; ++z)
+  {
+    slice(z, values);
+    const auto r = std::minmax_element(values.begin(), values.end());
+    lo = std::min(lo, *r.first);
+    hi = std::max(hi, *r.second);
+  }
   PixelEncoding enc;
   if (fromDicom && !get("RescaleSlope").empty())
   {
@@ -126,18 +179,10 @@ WriteDicomSeries(const FileHeader & header, std::size_t compressedBytes,
     enc.intercept = std::stod(get("RescaleIntercept", "0"));
     enc.isSigned = get("PixelRepresentation", "0") == "1";
     enc.bitsStored = unsigned(std::clamp(std::stoi(get("BitsStored", "16")), 1, 16));
+    KeepDecodedRange(enc, lo, hi);
   }
   else
   {
-    double              lo = std::numeric_limits<double>::infinity(), hi = -lo;
-    std::vector<double> values;
-    for (int32_t z = 0; z < nz; ++z)
-    {
-      slice(z, values);
-      const auto r = std::minmax_element(values.begin(), values.end());
-      lo = std::min(lo, *r.first);
-      hi = std::max(hi, *r.second);
-    }
     const bool integer = IsInteger(header.pixelType);
     if (integer && lo >= -32768 && hi <= 32767)
     {
@@ -153,8 +198,8 @@ WriteDicomSeries(const FileHeader & header, std::size_t compressedBytes,
       enc.slope = hi > lo ? (hi - lo) / 65535.0 : 1.0;
     }
   }
-  const double storedMin = enc.isSigned ? -double(1 << (enc.bitsStored - 1)) : 0.0;
-  const double storedMax = enc.isSigned ? double((1 << (enc.bitsStored - 1)) - 1) : double((1 << enc.bitsStored) - 1);
+  const double storedMin = StoredMin(enc);
+  const double storedMax = StoredMax(enc);
 
   const std::string series = NewUid();
   const std::string study = fromDicom ? get("StudyInstanceUID") : NewUid();
@@ -165,6 +210,13 @@ WriteDicomSeries(const FileHeader & header, std::size_t compressedBytes,
     std::strftime(date, sizeof(date), "%Y%m%d%H%M%S", std::gmtime(&t));
     return std::string(date);
   }();
+  std::string derivation = "Decoded from a DelaunayCompression .dcv file: lossy, a linear spline over an adaptive "
+                           "Delaunay tetrahedralization";
+  for (const auto & [key, value] : header.metadata)
+  {
+    if (key == "Resampled")
+      derivation += "; the original series was resampled onto a regular grid (" + value + ")";
+  }
   const double voxels = double(header.size.NumberOfVoxels());
   const double originalBytes = voxels * (enc.bitsStored > 8 ? 2.0 : 1.0);
   const double ratio = originalBytes / double(std::max<std::size_t>(1, compressedBytes));
@@ -174,7 +226,6 @@ WriteDicomSeries(const FileHeader & header, std::size_t compressedBytes,
   fs::create_directories(temporary);
   try
   {
-    std::vector<double> values;
     std::vector<Uint16> pixels(std::size_t(nx) * std::size_t(ny));
     const auto &        d = header.direction; // row major: column j is axis j's direction
     for (int32_t z = 0; z < nz; ++z)
@@ -201,6 +252,8 @@ WriteDicomSeries(const FileHeader & header, std::size_t compressedBytes,
       Put(ds, DCM_Modality, get("Modality", "OT"));
       if (!get("BodyPartExamined").empty())
         Put(ds, DCM_BodyPartExamined, get("BodyPartExamined"));
+      if (!ct || get("BodyPartExamined").empty())
+        Put(ds, DCM_Laterality, ""); // type 2C: a paired body part (or one not known) needs it
       Put(ds, DCM_SeriesNumber, std::to_string(std::stoi(get("SeriesNumber", "0")) + 9000));
       Put(ds, DCM_SeriesDescription, (get("SeriesDescription") + " dcv lossy").substr(0, 64));
       Put(ds, DCM_Manufacturer, get("Manufacturer"));
@@ -211,10 +264,7 @@ WriteDicomSeries(const FileHeader & header, std::size_t compressedBytes,
       Put(ds, DCM_SoftwareVersions, "dcv 0.1.0");
       Put(ds, DCM_InstanceNumber, std::to_string(z + 1));
       Put(ds, DCM_ImageType, ct ? "DERIVED\\SECONDARY\\AXIAL" : "DERIVED\\SECONDARY");
-      Put(ds,
-          DCM_DerivationDescription,
-          "Decoded from a DelaunayCompression .dcv file: lossy, a linear spline over an adaptive Delaunay "
-          "tetrahedralization");
+      Put(ds, DCM_DerivationDescription, derivation);
       Put(ds, DCM_LossyImageCompression, "01");
       Put(ds, DCM_LossyImageCompressionRatio, Decimal(ratio));
       Put(ds, DCM_LossyImageCompressionMethod, "DCV");
@@ -224,7 +274,6 @@ WriteDicomSeries(const FileHeader & header, std::size_t compressedBytes,
       {
         Put(ds, DCM_ConversionType, "WSD");
         Put(ds, DCM_PatientOrientation, "");
-        Put(ds, DCM_Laterality, ""); // type 2C: the body part is not known
       }
       else
       {

@@ -90,7 +90,7 @@ ReadVolumePixelType(const std::string & path)
 }
 
 VolumeInput
-OpenVolume(const std::string & path, const std::string & series)
+OpenVolume(const std::string & path, const std::string & series, bool resample)
 {
   VolumeInput v;
   v.path = path;
@@ -108,9 +108,13 @@ OpenVolume(const std::string & path, const std::string & series)
     return v;
   }
   v.dicom = FindDicomSeries(path, series, v.skipped);
-  CheckDicomSlices("the DICOM series " + Quoted(path), ReadDicomSlices(v.dicom));
+  v.resampling = CheckDicomSlices("the DICOM series " + Quoted(path), ReadDicomSlices(v.dicom), resample);
   v.type = DicomPixelType(v.dicom);
   v.metadata = DicomMetadata(v.dicom);
+  if (v.resampling.needed)
+  {
+    v.metadata.emplace_back("Resampled", v.resampling.description); // the DICOM writer's derivation says so
+  }
   return v;
 }
 

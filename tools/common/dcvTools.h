@@ -88,12 +88,14 @@ struct VolumeInput
   DicomSeries                                      dicom;        // files empty: not DICOM
   std::vector<std::pair<std::string, std::string>> metadata;     // what a derived file keeps (DICOM attributes)
   std::size_t                                      skipped{ 0 }; // files of a DICOM directory that are not DICOM
+  DicomResampling                                  resampling;   // needed: a tilted or uneven series, resampled
 };
 
 /** Opens a volume: checks a volume file's header (ReadVolumeHeader), or finds and checks a DICOM series
- * (`series`: its Series Instance UID, needed when a directory holds several); Failure otherwise. */
+ * (`series`: its Series Instance UID, needed when a directory holds several; `resample`: a tilted or
+ * unevenly spaced series is resampled instead of refused); Failure otherwise. */
 VolumeInput
-OpenVolume(const std::string & path, const std::string & series = "");
+OpenVolume(const std::string & path, const std::string & series = "", bool resample = false);
 
 /** Reads an opened volume as an image of pixel type T (DICOM: rescaled, so CT is in Hounsfield units). */
 template <typename T>
@@ -103,6 +105,10 @@ ReadVolume(const VolumeInput & v)
   if (v.dicom.files.empty())
   {
     return ReadVolume<T>(v.path);
+  }
+  if (v.resampling.needed)
+  {
+    return RoundedImage<T>(ReadResampledDicomSeries(v.dicom, v.resampling).GetPointer());
   }
   auto reader = itk::ImageSeriesReader<itk::Image<T, 3>>::New();
   reader->SetImageIO(itk::GDCMImageIO::New());

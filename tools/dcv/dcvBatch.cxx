@@ -88,7 +88,7 @@ OneLine(const std::string & reason)
 /** Reads (when valid and not `force`) or makes the item's .dcv file. Never throws: a failure is the
  * item's status. */
 Outcome
-CompressItem(const Item & item, const fs::path & outputDir, const EncoderOptions & base, bool force,
+CompressItem(const Item & item, const fs::path & outputDir, const EncoderOptions & base, bool force, bool resample,
              const std::function<void(double)> & progress)
 {
   const auto        start = std::chrono::steady_clock::now();
@@ -124,7 +124,7 @@ CompressItem(const Item & item, const fs::path & outputDir, const EncoderOptions
   }
   try
   {
-    const VolumeInput volume = OpenVolume(item.path, item.series);
+    const VolumeInput volume = OpenVolume(item.path, item.series, resample);
     EncoderOptions    options = base;
     options.metadata.insert(options.metadata.begin(), volume.metadata.begin(), volume.metadata.end());
     options.progress = progress;
@@ -134,7 +134,7 @@ CompressItem(const Item & item, const fs::path & outputDir, const EncoderOptions
       r = itk::DCVEncode(image.GetPointer(), options);
     });
     WriteFileAtomically(output, r.bytes);
-    o.status = "ok";
+    o.status = volume.resampling.needed ? "ok (resampled: " + volume.resampling.description + ")" : "ok";
     o.failed = false;
     o.slices = r.header.size.z;
     o.bytes = r.bytes.size();
@@ -240,8 +240,10 @@ Batch(const BatchOptions & b)
     for (std::size_t i; (i = next++) < items.size();)
     {
       progress.Started(worker, items[i].name);
-      outcomes[i] = CompressItem(
-        items[i], outputDir, base, b.method.force, [&progress, worker](double f) { progress.Fraction(worker, f); });
+      outcomes[i] =
+        CompressItem(items[i], outputDir, base, b.method.force, b.method.resample, [&progress, worker](double f) {
+          progress.Fraction(worker, f);
+        });
       progress.Finished(worker, items[i].name, outcomes[i]);
     }
   };

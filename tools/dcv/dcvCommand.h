@@ -57,8 +57,9 @@ struct MethodOptions
 {
   EncoderOptions       encoder;
   std::string          mode{ "best" };
-  std::vector<int32_t> scale;  // --scale, when given
-  std::string          series; // --series: the Series Instance UID of a DICOM input
+  std::vector<int32_t> scale;             // --scale, when given
+  std::string          series;            // --series: the Series Instance UID of a DICOM input
+  bool                 resample{ false }; // --resample: a tilted or unevenly spaced DICOM series onto a grid
   bool                 force{ false };
   bool                 quiet{ false };
 
@@ -69,23 +70,32 @@ struct MethodOptions
 };
 
 /** Opens INPUT (a volume file or a DICOM series), checks OUTPUT (CheckOutput), notes skipped non-DICOM
- * files, then calls f(image, input) with the image read in its own pixel type. */
+ * files, says how a series was resampled, then calls f(image, input) with the image read in its own
+ * pixel type. */
 template <typename TFunction>
 void
 WithVolume(const std::string & input, const std::string & series, const std::string & output, const MethodOptions & o,
            bool dcvFile, TFunction && f)
 {
-  const VolumeInput volume = OpenVolume(input, series);
+  const VolumeInput volume = OpenVolume(input, series, o.resample);
   CheckOutput(output, o.force, dcvFile);
   if (volume.skipped > 0 && !o.quiet)
   {
     std::cerr << "dcv: skipped " << volume.skipped << " files of " << Quoted(input) << " that are not DICOM"
               << std::endl;
   }
+  if (volume.resampling.needed && !o.quiet)
+  {
+    std::cout << "resampled: " << volume.resampling.description << std::endl;
+  }
   VisitPixelType(volume.type, [&](auto pixel) { f(ReadVolume<decltype(pixel)>(volume), volume); });
 }
 
-/** Declares INPUT, the method's options, --force and --quiet on a command. */
+/** Declares --resample (MethodOptions::resample) on a command. */
+void
+AddResampleOption(CLI::App & command, MethodOptions & o);
+
+/** Declares INPUT, the method's options (--resample included), --force and --quiet on a command. */
 void
 AddMethodOptions(CLI::App & command, std::string & input, MethodOptions & o);
 

@@ -27,7 +27,7 @@ struct ConvertOptions
 {
   std::string   input;
   std::string   output;
-  MethodOptions method; // --series, --force, --quiet
+  MethodOptions method; // --series, --resample, --force, --quiet
 };
 
 const RegisterCommand convert{
@@ -39,6 +39,7 @@ const RegisterCommand convert{
       command.add_option("INPUT", c->input, "Input volume (NRRD, NIfTI, MetaImage, ...) or DICOM series")->required();
       command.add_option("OUTPUT", c->output, "Output volume (.nrrd, .nii.gz, .mha, ...)")->required();
       command.add_option("--series", c->method.series, "Series Instance UID");
+      AddResampleOption(command, c->method);
       command.add_flag("--force,-f", c->method.force, "Overwrite OUTPUT if it exists");
       command.add_flag("--quiet,-q", c->method.quiet, "Print nothing but errors");
       return [c] {

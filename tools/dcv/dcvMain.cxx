@@ -73,11 +73,21 @@ MethodOptions::Checked(const std::string & label) const
 }
 
 void
+AddResampleOption(CLI::App & command, MethodOptions & o)
+{
+  command.add_flag("--resample",
+                   o.resample,
+                   "Resample a DICOM series with gantry tilt or uneven slice spacing onto a regular grid along the "
+                   "normal of its orientation (linear interpolation; the smallest gap) instead of refusing it");
+}
+
+void
 AddMethodOptions(CLI::App & command, std::string & input, MethodOptions & o)
 {
   command.add_option("INPUT", input, "Input volume (NRRD, NIfTI, MetaImage, ...) or DICOM series (a directory)")
     ->required();
   command.add_option("--series", o.series, "Series Instance UID, when the DICOM directory holds several");
+  AddResampleOption(command, o);
   command
     .add_option("--mode,-m",
                 o.mode,
