@@ -46,7 +46,9 @@ constexpr uint8_t FlagAxisDirection = 64; // the direction is one byte: a signed
 constexpr int Permutations[6][3] = { { 0, 1, 2 }, { 0, 2, 1 }, { 1, 0, 2 }, { 1, 2, 0 }, { 2, 0, 1 }, { 2, 1, 0 } };
 
 /** The one-byte code of a direction that is a signed permutation of the axes (flips and swaps, as most
- * volumes have: 71 bytes fewer), or -1. Bits 0-2: the permutation; bit 3 + r: row r is negative. */
+ * volumes have: 71 bytes fewer), or -1. Bits 0-2: the permutation; bit 3 + r: row r is negative. A
+ * reader that normalizes a spacing vector may leave an ulp off 1 (ct-avm-4mm: -0.9999999999999999):
+ * within 1e-12 counts as 1. */
 int
 AxisDirectionCode(const std::array<double, 9> & d)
 {
@@ -61,7 +63,7 @@ AxisDirectionCode(const std::array<double, 9> & d)
         const double v = d[std::size_t(3 * r + c)];
         if (c == Permutations[code][r])
         {
-          match = v == 1.0 || v == -1.0;
+          match = std::abs(std::abs(v) - 1.0) <= 1e-12;
           signs |= v < 0.0 ? (8 << r) : 0;
         }
         else

@@ -382,7 +382,18 @@ TEST(FileFormat, AxisDirectionsTakeOneByte)
         }
       }
   EXPECT_EQ(permutations, 48);
-  // Anything else (a rotation, a permutation off by one ulp) keeps its 9 doubles, exactly.
+  // An ulp off 1, as ITK's NRRD reader leaves it, is a flip too.
+  {
+    FileHeader h = plain;
+    h.direction = { -0.9999999999999999, 0, 0, 0, -1, 0, 0, 0, 1 };
+    const auto bytes = SerializeFile(h, some);
+    EXPECT_EQ(bytes.size(), identityBytes + 1);
+    FileHeader           back;
+    std::vector<uint8_t> payload;
+    ParseFile(bytes, "x.dcv", back, payload);
+    EXPECT_EQ(back.direction, (std::array<double, 9>{ -1, 0, 0, 0, -1, 0, 0, 0, 1 }));
+  }
+  // Anything else (a rotation, a permutation off by 6e-8) keeps its 9 doubles, exactly.
   FileHeader h = plain;
   h.direction = { 0.9999999404, 0, 0, 0, 0, -1, 0, -1, 0 };
   const auto bytes = SerializeFile(h, some);
