@@ -36,6 +36,10 @@
 namespace dcv
 {
 
+/** The value coder's lattice indices k stay below this in magnitude when coding (the decoder allows 2^31,
+ * so that every residual between two of them fits an int32). */
+constexpr int64_t MaximumQuantizationIndex = int64_t(1) << 30;
+
 /** Codes the points and values of `a` (values must be q0 + k q with integer k, |k| < 2^30). The value
  * prediction needs the Delaunay tetrahedralization of the points, as the decoder rebuilds it: it is
  * computed here, unless `delaunay` says that a.tetrahedra already is it (the engine's mesh: unique

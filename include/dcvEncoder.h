@@ -74,6 +74,20 @@ struct EncoderOptions
 DelaunayCompression_EXPORT void
 CheckOptions(const EncoderOptions & options);
 
+/** BitsPerVoxel above this is refused whatever the volume: the size of a float64 voxel. */
+constexpr double MaximumBitsPerVoxel = 64.0;
+
+struct EncoderInput;
+
+/** CheckOptions(options), then what depends on the volume (its voxels only when input.voxels is set):
+ * finite voxels, BitsPerVoxel at most the
+ * pixel type's bits and within MaximumPayloadBytes, NumberOfPoints at most the voxels (when it is the
+ * target), and a QuantizationStep whose lattice spans the values within MaximumQuantizationIndex / 2
+ * steps (MaximumPayloadBytes, MaximumQuantizationIndex: dcvFileFormat.h, dcvCodec.h). Throws
+ * std::invalid_argument. */
+DelaunayCompression_EXPORT void
+CheckOptions(const EncoderOptions & options, const EncoderInput & input);
+
 /** Checks that each axis has 2 to MaximumGridExtent voxels; throws std::invalid_argument. */
 DelaunayCompression_EXPORT void
 CheckGrid(const GridSize & grid);

@@ -159,6 +159,9 @@ struct CompressedFile
   std::size_t          size{ 0 }; // bytes of the whole file
 };
 
+/** The largest payload a .dcv file holds: its length is a uint32. */
+constexpr uint64_t MaximumPayloadBytes = 0xFFFFFFFFu;
+
 /** A payload of L bytes codes at most MaximumPointsPerPayloadByte x L points, so that ParseFile() refuses
  * a larger point count before anything is decoded. Why: every point's value starts with one adaptive
  * decision (the zero flag of its residual model, maximum shift 5), whose probability stays within

@@ -57,6 +57,7 @@ public:
     }
     m_Input.voxels = m_Voxels.data();
     m_Input.header.pixelType = dcv::PixelTypeOf<PixelType>();
+    dcv::CheckOptions(options, m_Input); // what depends on the voxels, before I* is made
     if (dcv::UsesSmoothedImage(options.mode))
     {
       // I*: the bilateral filter of I (combined image approach), with sigmas in voxels.

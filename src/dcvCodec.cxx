@@ -127,7 +127,7 @@ EncodePayload(const Approximation & a, double q0, double q, bool delaunay)
     sorted[original] = uint32_t(i);
     const double v = a.values[original];
     const double index = std::round((v - q0) / q);
-    if (std::abs(index - (v - q0) / q) > 1e-6 || std::abs(index) >= double(1 << 30))
+    if (std::abs(index - (v - q0) / q) > 1e-6 || std::abs(index) >= double(MaximumQuantizationIndex))
     {
       throw std::invalid_argument("EncodePayload: value " + std::to_string(v) + " is not on the quantization lattice");
     }

@@ -25,6 +25,7 @@
 #include <algorithm>
 #include <chrono>
 #include <cmath>
+#include <cstdio>
 #include <limits>
 #include <stdexcept>
 #include <string>
@@ -68,10 +69,17 @@ CheckOptions(const EncoderOptions & o)
 {
   // Each option is named as the ITK classes call it and as the dcv tool spells it.
   auto refuse = [](const std::string & what, const std::string & rule, double v) {
-    throw std::invalid_argument(what + " must be " + rule + ", got " + Number(v));
+    char text[32]; // 1e-300 in fixed notation would read as 0
+    std::snprintf(text, sizeof(text), "%g", v);
+    const bool plain = v == 0.0 || (std::abs(v) >= 1e-4 && std::abs(v) < 1e15);
+    throw std::invalid_argument(what + " must be " + rule + ", got " + (plain ? Number(v) : std::string(text)));
   };
   if (!(o.bitsPerVoxel >= 0.0) || !std::isfinite(o.bitsPerVoxel))
     refuse("BitsPerVoxel (--bpv)", "positive, or 0: off", o.bitsPerVoxel);
+  // No budget beyond the widest voxel's own size (float64) is ever needed; the volume's own bound is
+  // checked with its pixel type (CheckOptions with the input).
+  if (o.bitsPerVoxel > MaximumBitsPerVoxel)
+    refuse("BitsPerVoxel (--bpv)", "at most " + std::to_string(int(MaximumBitsPerVoxel)), o.bitsPerVoxel);
   if (!(o.psnr >= 0.0) || !std::isfinite(o.psnr))
     refuse("PSNR (--psnr)", "positive, or 0: off", o.psnr);
   if (o.bitsPerVoxel > 0.0 && o.psnr > 0.0)
@@ -92,6 +100,62 @@ CheckOptions(const EncoderOptions & o)
     if (!automatic && (s < 1 || s > MaximumGridScale))
       refuse(
         "Scale (--scale)", "1 to " + std::to_string(MaximumGridScale) + " on each axis, or 0 on all: automatic", s);
+  }
+}
+
+void
+CheckOptions(const EncoderOptions & o, const EncoderInput & input)
+{
+  CheckOptions(o);
+  const uint64_t voxels = input.header.size.NumberOfVoxels();
+  const float *  end = input.voxels + (input.voxels != nullptr ? voxels : 0);
+  // Non-finite values would make the quantization origin, the step and the PSNR NaN or infinite.
+  const auto nonFinite = std::count_if(input.voxels, end, [](float v) { return !std::isfinite(v); });
+  if (nonFinite > 0)
+  {
+    throw std::invalid_argument("the volume holds " + std::to_string(nonFinite) +
+                                " non-finite voxels (NaN or infinite); dcv codes finite values only");
+  }
+  int bits = 0;
+  VisitPixelType(input.header.pixelType, [&bits](auto pixel) { bits = int(8 * sizeof(pixel)); });
+  if (o.bitsPerVoxel > double(bits))
+  {
+    throw std::invalid_argument("BitsPerVoxel (--bpv) must be at most " + std::to_string(bits) + " for " +
+                                PixelTypeName(input.header.pixelType) +
+                                " voxels (the size of the volume itself), got " + Number(o.bitsPerVoxel));
+  }
+  const double budget = std::floor(o.bitsPerVoxel * double(voxels) / 8.0);
+  if (budget > double(MaximumPayloadBytes))
+  {
+    throw std::invalid_argument("BitsPerVoxel (--bpv) " + Number(o.bitsPerVoxel) + " allows " + Number(budget) +
+                                " bytes for " + std::to_string(voxels) + " voxels; a .dcv payload holds at most " +
+                                std::to_string(MaximumPayloadBytes) + " (a uint32 length)");
+  }
+  if (o.bitsPerVoxel == 0.0 && o.psnr == 0.0 && o.numberOfPoints > voxels)
+  {
+    throw std::invalid_argument("NumberOfPoints (--points) must be at most the number of voxels, " +
+                                std::to_string(voxels) + ", got " + std::to_string(o.numberOfPoints));
+  }
+  if (input.voxels != nullptr && o.quantizationStep > 0.0)
+  {
+    // The value coder takes lattice indices k = (v - q0) / q below 2^30 (EncodePayload), q0 the minimum;
+    // half of that leaves room for least-squares values beyond the range of the voxels.
+    const auto   range = std::minmax_element(input.voxels, end);
+    const double span = double(*range.second) - double(*range.first);
+    const double smallest = span / double(MaximumQuantizationIndex / 2);
+    if (o.quantizationStep < smallest)
+    {
+      char text[96];
+      std::snprintf(text,
+                    sizeof(text),
+                    "at least %g for values from %g to %g (2^29 steps)",
+                    smallest,
+                    double(*range.first),
+                    double(*range.second));
+      char given[32];
+      std::snprintf(given, sizeof(given), "%g", o.quantizationStep);
+      throw std::invalid_argument(std::string("QuantizationStep (--step) must be ") + text + ", got " + given);
+    }
   }
 }
 
@@ -195,6 +259,9 @@ ChooseLayers(const EncoderInput & input, std::size_t fileBytes, std::size_t head
   const double    step = ResidualStep(r.peak, IsInteger(type));
   const double    q0 = r.header.quantizationOrigin, q = r.quantizationStep;
   double          bestError = DecodedSquaredError(r.approximation, type, input.voxels);
+  // Nothing decodes closer than exactly (a constant volume, whose step and peak are 0 as well).
+  if (!(bestError > 0.0) || !(step > 0.0))
+    return;
   // Below this many bytes a codestream is mostly its own headers.
   constexpr std::size_t minimumCodestream = 256;
   auto                  room = [&](std::size_t payloadBytes) {

@@ -311,7 +311,7 @@ TEST_F(Batch, RefusesBadArgumentsWithAMessage)
   for (const std::string shard : { "0/3", "4/3", "3", "a/3", "1/0", "1/3x", "-1/3", "2/+3", "" })
   {
     const Result r = RunBatch("out", " '--shard=" + shard + "'");
-    EXPECT_EQ(r.status, 1) << shard << ": " << r.output;
+    EXPECT_EQ(r.status, 2) << shard << ": " << r.output; // a usage error
     EXPECT_TRUE(Contains(r.output, "--shard")) << shard << ": " << r.output;
     if (!shard.empty()) // CLI11 refuses an empty value itself
     {
@@ -320,13 +320,13 @@ TEST_F(Batch, RefusesBadArgumentsWithAMessage)
   }
   EXPECT_FALSE(fs::exists(Path("out"))); // refused before anything was written
   const Result noTarget = RunDcv("batch " + m_Tree + " " + Path("out"));
-  EXPECT_EQ(noTarget.status, 1);
+  EXPECT_EQ(noTarget.status, 2);
   EXPECT_TRUE(Contains(noTarget.output, "batch needs a target: --bpv R, --psnr DB or --points N")) << noTarget.output;
   const Result noTree = RunDcv("batch " + Path("missing") + " " + Path("out") + " --bpv 0.25");
   EXPECT_EQ(noTree.status, 1);
   EXPECT_TRUE(Contains(noTree.output, "no such directory")) << noTree.output;
   const Result badMode = RunDcv("batch " + m_Tree + " " + Path("out") + " --bpv 0.25 --mode nonsense");
-  EXPECT_EQ(badMode.status, 1);
+  EXPECT_EQ(badMode.status, 2);
   EXPECT_TRUE(Contains(badMode.output, "--mode")) << badMode.output;
   EXPECT_FALSE(fs::exists(Path("out")));
 }

@@ -206,9 +206,9 @@ TEST(MeshExport, RefusesBadInputsAndExistingOutputs)
   EXPECT_EQ(r.status, 1);
   EXPECT_NE(r.output.find("missing.dcv"), std::string::npos) << r.output;
 
-  // A format it does not write, a missing directory.
+  // A format it does not write (a usage error), a missing directory.
   r = RunDcv("mesh " + dcvFile + " " + directory / "mesh.obj");
-  EXPECT_EQ(r.status, 1);
+  EXPECT_EQ(r.status, 2);
   EXPECT_NE(r.output.find(".vtu"), std::string::npos) << r.output;
   EXPECT_FALSE(fs::exists(directory / "mesh.obj"));
   r = RunDcv("mesh " + dcvFile + " " + directory / "no/mesh.vtu");
@@ -233,9 +233,9 @@ TEST(MeshExport, RefusesBadInputsAndExistingOutputs)
     EXPECT_NE(entry.path().filename().string().rfind(".dcv-", 0), 0u) << entry.path();
   }
 
-  // Usage errors exit 1, as every usage error of dcv does.
-  EXPECT_EQ(RunDcv("mesh " + dcvFile).status, 1);
-  EXPECT_EQ(RunDcv("mesh " + dcvFile + " " + mesh + " --bogus").status, 1);
+  // Usage errors exit 2, as every usage error of dcv does.
+  EXPECT_EQ(RunDcv("mesh " + dcvFile).status, 2);
+  EXPECT_EQ(RunDcv("mesh " + dcvFile + " " + mesh + " --bogus").status, 2);
   EXPECT_NE(RunDcv("mesh --help").output.find("residual layer"), std::string::npos);
 }
 

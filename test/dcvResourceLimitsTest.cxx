@@ -277,7 +277,7 @@ TEST_F(ResourceLimits, ATinyLimitRefusesARealFileEverywhere)
   EXPECT_EQ(r.status, 1);
   EXPECT_NE(r.output.find("memory limit of 524 bytes"), std::string::npos) << r.output;
   r = test::RunDcv("decompress " + path + " " + output + " --max-memory lots");
-  EXPECT_EQ(r.status, 1);
+  EXPECT_EQ(r.status, 2); // a usage error
   EXPECT_NE(r.output.find("--max-memory"), std::string::npos) << r.output;
   r = test::RunDcv("decompress " + path + " " + output + " --max-memory 1G --quiet");
   EXPECT_EQ(r.status, 0) << r.output;

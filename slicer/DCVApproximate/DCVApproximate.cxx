@@ -90,10 +90,10 @@ main(int argc, char * argv[])
         difference[i] = E(std::abs(double(original[i]) - double(decoded[i])));
       }
 
-      WriteVolume(approximation.GetPointer(), output);
+      WriteVolume(approximation.GetPointer(), output, true); // Slicer chooses the names
       try
       {
-        WriteVolume(error.GetPointer(), errorOutput);
+        WriteVolume(error.GetPointer(), errorOutput, true);
       }
       catch (...)
       {

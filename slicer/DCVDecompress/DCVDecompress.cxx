@@ -35,7 +35,7 @@ main(int argc, char * argv[])
     progress.Report(0.1);
     DecodeVolume(file, [&](auto image) {
       progress.Report(0.7);
-      WriteVolume(image.GetPointer(), output);
+      WriteVolume(image.GetPointer(), output, true); // Slicer chooses the names it reads back
     });
     arguments.Return("outputPoints", int64_t(file.header.numberOfPoints));
     arguments.Return("outputBitsPerVoxel", double(file.size) * 8.0 / double(file.header.size.NumberOfVoxels()));

@@ -224,6 +224,7 @@ WriteDicomSeries(const FileHeader & header, std::size_t compressedBytes,
   const fs::path temporary = parent / (".dcv-" + std::to_string(::getpid()) + "-" + target.filename().string());
   fs::remove_all(temporary);
   fs::create_directories(temporary);
+  const RemovedOnSignal registration(temporary.string(), true);
   try
   {
     std::vector<Uint16> pixels(std::size_t(nx) * std::size_t(ny));
@@ -325,11 +326,26 @@ WriteDicomSeries(const FileHeader & header, std::size_t compressedBytes,
       }
     }
     const fs::path old = parent / (".dcv-" + std::to_string(::getpid()) + "-old-" + target.filename().string());
-    if (fs::exists(target))
+    const bool     replacing = force && fs::exists(target);
+    if (replacing)
     {
       fs::rename(target, old);
     }
-    fs::rename(temporary, target);
+    // Without --force, rename() itself refuses a directory that became non-empty meanwhile.
+    std::error_code error;
+    fs::rename(temporary, target, error);
+    if (error)
+    {
+      std::error_code ignored;
+      if (replacing)
+        fs::rename(old, target, ignored); // the old series back
+
+      throw Failure("cannot write the DICOM series " + Quoted(directory) + ": " +
+                    (fs::is_directory(target) && !fs::is_empty(target)
+                       ? std::string("files appeared in it while it was being written (another run?); they are kept, "
+                                     "use --force to replace them")
+                       : error.message()));
+    }
     fs::remove_all(old);
   }
   catch (...)

@@ -32,10 +32,14 @@
 
 #include "dcvDicom.h"
 
+#include <cstdint>
+#include <cstring>
 #include <filesystem>
 #include <functional>
+#include <memory>
 #include <stdexcept>
 #include <string>
+#include <vector>
 
 namespace dcv::tools
 {
@@ -45,6 +49,13 @@ namespace dcv::tools
 struct Failure : std::runtime_error
 {
   using std::runtime_error::runtime_error;
+};
+
+/** A failure of the command line itself (an option out of range, an output name no format has, the
+ * output given as the input): what can be told without reading any input. Exit status 2. */
+struct UsageError : Failure
+{
+  using Failure::Failure;
 };
 
 inline std::string
@@ -126,7 +137,7 @@ ReadVolume(const VolumeInput & v)
 }
 
 /** Refuses to clobber an existing file unless forced, a missing directory, and (unless `dcvFile`) a
- * name no ITK image format writes; with `dcvFile` the name must end in .dcv. */
+ * name no ITK image format writes (UsageError); with `dcvFile` the name must end in .dcv. */
 void
 CheckOutput(const std::string & output, bool force, bool dcvFile = false);
 
@@ -135,25 +146,86 @@ CheckOutput(const std::string & output, bool force, bool dcvFile = false);
 void
 CheckOutputPath(const std::string & output, bool force);
 
-/** Where a volume is written before it gets its name: a temporary file in the same directory for
- * formats that are one file, the name itself for those that are several (.mhd/.raw, .hdr/.img). */
-std::string
-TemporaryOutput(const std::string & output);
-
-/** Moves the temporary output to its name; on failure (or `failed`) removes it. */
+/** Refuses (UsageError) an output that is one of the inputs, compared by file-system identity (device
+ * and inode), so that no spelling of the same path (links, ./, ..) overwrites what is being read. */
 void
-FinishOutput(const std::string & temporary, const std::string & output, bool failed);
+CheckOutputIsNotInput(const std::vector<std::string> & inputs, const std::string & output);
 
-/** Writes an image (gzip compressed where the format allows) through TemporaryOutput(), so that a
- * failure never leaves a partial or empty file under the output's name. */
+/** While it lives, a temporary file (or a directory of files, one level) that SIGINT, SIGTERM and SIGHUP
+ * remove before the process dies of them (async-signal-safe: a fixed table, unlink, rmdir). The
+ * handlers are installed by the first registration, for the signals nobody else handles or ignores.
+ * SIGKILL cannot be caught: its leftovers are named `.dcv-PID-*` (README, "Outputs"). */
+class RemovedOnSignal
+{
+public:
+  RemovedOnSignal(const std::string & path, bool directory);
+  ~RemovedOnSignal();
+  RemovedOnSignal(const RemovedOnSignal &) = delete;
+  RemovedOnSignal &
+  operator=(const RemovedOnSignal &) = delete;
+
+private:
+  int m_Slot{ -1 };
+};
+
+/** An output on its way to its name. It is written under a temporary name in the target's directory
+ * (`.dcv-PID-NAME`, keeping NAME's extension so that ITK picks the same format; `.dcv-PID-NAME.tmp` for
+ * bytes; for the formats of several files, .mhd/.raw, .hdr/.img, .nhdr, a directory `.dcv-PID-NAME.tmp`
+ * holding them), registered so that SIGINT, SIGTERM and SIGHUP remove it, and removed on destruction
+ * unless Commit() gave it its name. */
+class PendingOutput
+{
+public:
+  /** `itkFormat`: ITK picks the writer from Path()'s extension (else the bytes are written by hand);
+   * `force`: Commit() may replace an existing file. */
+  PendingOutput(const std::string & output, bool force, bool itkFormat);
+  ~PendingOutput();
+  PendingOutput(const PendingOutput &) = delete;
+  PendingOutput &
+  operator=(const PendingOutput &) = delete;
+
+  /** Where to write. */
+  const std::string &
+  Path() const
+  {
+    return m_Path;
+  }
+  /** Flushes what was written to the disk and moves it to the output's name: without `force` only if
+   * no file of that name appeared meanwhile (renameat2 RENAME_NOREPLACE, else link and unlink, both
+   * atomic); Failure naming the output otherwise, and the temporary is removed. */
+  void
+  Commit();
+
+  /** After a failed write, the cause when the disk or a limit tells it ("the disk is full ...", a
+   * `ulimit -f` size reached), else empty. */
+  std::string
+  LimitReached() const;
+
+private:
+  std::string                      m_Output;
+  std::string                      m_Path;      // the temporary file
+  std::string                      m_Directory; // the temporary directory of a format of several files, else empty
+  bool                             m_Force;
+  bool                             m_Committed{ false };
+  std::unique_ptr<RemovedOnSignal> m_Registration;
+};
+
+/** Writes bytes (a .dcv file) to `output` through a PendingOutput: a failure (a full disk, a missing
+ * permission) never leaves a partial or empty file, and is a Failure naming the file and the cause. */
+void
+WriteOutputBytes(const std::string & output, const std::vector<uint8_t> & bytes, bool force);
+
+/** Writes an image (gzip compressed where the format allows) through a PendingOutput, so that a
+ * failure never leaves a partial or empty file under the output's name; `force`: an existing file may
+ * be replaced. */
 template <typename TImage>
 void
-WriteVolume(const TImage * image, const std::string & output)
+WriteVolume(const TImage * image, const std::string & output, bool force)
 {
-  const std::string temporary = TemporaryOutput(output);
-  auto              writer = itk::ImageFileWriter<TImage>::New();
+  PendingOutput pending(output, force, true);
+  auto          writer = itk::ImageFileWriter<TImage>::New();
   writer->SetInput(image);
-  writer->SetFileName(temporary);
+  writer->SetFileName(pending.Path());
   writer->UseCompressionOn();
   try
   {
@@ -161,10 +233,33 @@ WriteVolume(const TImage * image, const std::string & output)
   }
   catch (const itk::ExceptionObject & e)
   {
-    FinishOutput(temporary, output, true);
-    throw Failure("cannot write " + Quoted(output) + ": " + e.GetDescription());
+    const std::string limit = pending.LimitReached();
+    throw Failure("cannot write " + Quoted(output) + ": " + (limit.empty() ? e.GetDescription() : limit));
   }
-  FinishOutput(temporary, output, false);
+  // ITK's MetaImage, NIfTI and Analyze writers report a failed write (a full disk) on stderr only, and
+  // their readers take the short file without an error: what was written is read back and compared.
+  bool same = false;
+  try
+  {
+    auto reader = itk::ImageFileReader<TImage>::New();
+    reader->SetFileName(pending.Path());
+    reader->Update();
+    const TImage * back = reader->GetOutput();
+    const auto     n = image->GetBufferedRegion().GetNumberOfPixels();
+    same =
+      back->GetBufferedRegion().GetSize() == image->GetBufferedRegion().GetSize() &&
+      std::memcmp(back->GetBufferPointer(), image->GetBufferPointer(), n * sizeof(typename TImage::PixelType)) == 0;
+  }
+  catch (const itk::ExceptionObject &)
+  {}
+  if (!same)
+  {
+    const std::string limit = pending.LimitReached();
+    throw Failure(
+      "cannot write " + Quoted(output) + ": " +
+      (limit.empty() ? "the file written reads back short or different (a write failed: the disk full?)" : limit));
+  }
+  pending.Commit();
 }
 
 /** Parses the bytes of a whole .dcv file made in memory, as ReadCompressedFile() parses a file (FormatError

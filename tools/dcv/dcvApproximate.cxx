@@ -30,14 +30,17 @@ struct ApproximateOptions
   std::string   input;
   std::string   output;
   MethodOptions method;
+  CLI::Option * points{ nullptr };
 };
 
 void
 Approximate(const ApproximateOptions & a)
 {
-  const EncoderOptions options = a.method.Checked("approximating");
+  EncoderOptions options = a.method.Checked("approximating");
   WithVolume(a.input, a.method.series, a.output, a.method, false, [&](auto image, const VolumeInput &) {
     using T = typename decltype(image)::ObjectType::PixelType;
+    CheckFiniteVoxels(image.GetPointer(), a.input);
+    DefaultPointsForVolume(options, a.points, image->GetBufferedRegion().GetNumberOfPixels());
     const auto    start = std::chrono::steady_clock::now();
     EncoderResult r;
     try
@@ -58,12 +61,12 @@ Approximate(const ApproximateOptions & a)
     const double psnr = PSNR(SquaredError(image->GetBufferPointer(), result->GetBufferPointer(), n),
                              n,
                              PSNRPeak(image->GetBufferPointer(), n));
-    WriteVolume(result.GetPointer(), a.output);
+    WriteVolume(result.GetPointer(), a.output, a.method.force);
     if (!a.method.quiet)
     {
       std::cout << "mode: " << ModeName(options.mode) << "\n"
                 << "points: " << r.approximation.points.size() << "\n"
-                << "PSNR: " << psnr << " dB\n"
+                << "PSNR: " << FormatPSNR(psnr) << "\n"
                 << "seconds: " << seconds << "\n";
     }
   });
@@ -78,9 +81,11 @@ const RegisterCommand approximate{
       auto a = std::make_shared<ApproximateOptions>();
       AddMethodOptions(command, a->input, a->method);
       command.add_option("OUTPUT", a->output, "Output volume (format from its extension)")->required();
-      command.add_option("--points,-n", a->method.encoder.numberOfPoints, "Number of significant points (at least 8)")
-        ->check(CLI::NonNegativeNumber)
-        ->capture_default_str();
+      a->points =
+        command
+          .add_option("--points,-n", a->method.encoder.numberOfPoints, "Number of significant points (at least 8)")
+          ->check(CLI::NonNegativeNumber)
+          ->capture_default_str();
       return [a] { Approximate(*a); };
     } }
 };

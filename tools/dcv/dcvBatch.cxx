@@ -131,9 +131,11 @@ CompressItem(const Item & item, const fs::path & outputDir, const EncoderOptions
     EncoderResult r;
     VisitPixelType(volume.type, [&](auto pixel) {
       const auto image = ReadVolume<decltype(pixel)>(volume);
+      CheckFiniteVoxels(image.GetPointer(), item.path);
       r = itk::DCVEncode(image.GetPointer(), options);
     });
-    WriteFileAtomically(output, r.bytes);
+    // Replacing is allowed: an existing file here is damaged (a valid one was skipped) or --force.
+    WriteOutputBytes(output, r.bytes, true);
     o.status = volume.resampling.needed ? "ok (resampled: " + volume.resampling.description + ")" : "ok";
     o.failed = false;
     o.slices = r.header.size.z;
@@ -162,7 +164,7 @@ Batch(const BatchOptions & b)
 {
   if (!b.targeted)
   {
-    throw Failure("batch needs a target: --bpv R, --psnr DB or --points N");
+    throw UsageError("batch needs a target: --bpv R, --psnr DB or --points N");
   }
   MethodOptions method = b.method;
   method.quiet = true; // the encoder's own progress line would fight the batch's

@@ -217,7 +217,7 @@ ParseShard(const std::string & text)
       return { k, n };
     }
   }
-  throw Failure("--shard " + Quoted(text) + ": expected K/N with 1 <= K <= N (e.g. --shard 2/8: the second of 8)");
+  throw UsageError("--shard " + Quoted(text) + ": expected K/N with 1 <= K <= N (e.g. --shard 2/8: the second of 8)");
 }
 
 } // namespace dcv::tools

@@ -26,9 +26,11 @@
 #include <CLI/CLI.hpp>
 
 #include <chrono>
+#include <cmath>
 #include <functional>
 #include <iostream>
 #include <string>
+#include <type_traits>
 #include <vector>
 
 namespace dcv::tools
@@ -77,7 +79,10 @@ void
 WithVolume(const std::string & input, const std::string & series, const std::string & output, const MethodOptions & o,
            bool dcvFile, TFunction && f)
 {
-  const VolumeInput volume = OpenVolume(input, series, o.resample);
+  const VolumeInput        volume = OpenVolume(input, series, o.resample);
+  std::vector<std::string> inputs = volume.dicom.files;
+  inputs.push_back(input);
+  CheckOutputIsNotInput(inputs, output); // before "already exists": the more useful message
   CheckOutput(output, o.force, dcvFile);
   if (volume.skipped > 0 && !o.quiet)
   {
@@ -94,6 +99,48 @@ WithVolume(const std::string & input, const std::string & series, const std::str
 /** Declares --resample (MethodOptions::resample) on a command. */
 void
 AddResampleOption(CLI::App & command, MethodOptions & o);
+
+/** Refuses (Failure) a volume with NaN or infinite voxels, or values beyond the float range the encoder
+ * works in, naming `input`: the quantization and the PSNR need finite values. */
+template <typename TImage>
+void
+CheckFiniteVoxels(const TImage * image, const std::string & input)
+{
+  using T = typename TImage::PixelType;
+  if constexpr (std::is_floating_point_v<T>)
+  {
+    const std::size_t n = image->GetBufferedRegion().GetNumberOfPixels();
+    const T *         voxels = image->GetBufferPointer();
+    std::size_t       nonFinite = 0;
+    std::size_t       beyondFloat = 0;
+    for (std::size_t i = 0; i < n; ++i)
+    {
+      if (!std::isfinite(voxels[i]))
+        ++nonFinite;
+      else if (!std::isfinite(static_cast<float>(voxels[i])))
+        ++beyondFloat;
+    }
+    if (nonFinite > 0)
+    {
+      throw Failure(Quoted(input) + " holds " + std::to_string(nonFinite) +
+                    " non-finite voxels (NaN or infinite); dcv codes finite values only");
+    }
+    if (beyondFloat > 0)
+    {
+      throw Failure(Quoted(input) + " holds " + std::to_string(beyondFloat) +
+                    " voxels beyond the range of float (3.4e38), which the encoder works in");
+    }
+  }
+}
+
+/** A PSNR as compress and approximate print it: "inf dB (exact)" when nothing differs. */
+std::string
+FormatPSNR(double psnr);
+
+/** The default --points (10000) for a volume of `voxels`: at most the voxels, so that a small volume
+ * needs no option; a count given on the command line is kept, and refused if too large. */
+void
+DefaultPointsForVolume(EncoderOptions & options, const CLI::Option * points, uint64_t voxels);
 
 /** Declares INPUT, the method's options (--resample included), --force and --quiet on a command. */
 void

@@ -30,6 +30,7 @@ struct CompressOptions
   std::string   input;
   std::string   output;
   MethodOptions method;
+  TargetOptions targets;
 };
 
 void
@@ -39,6 +40,8 @@ Compress(const CompressOptions & c)
   const auto     start = std::chrono::steady_clock::now();
   EncoderResult  r;
   WithVolume(c.input, c.method.series, c.output, c.method, true, [&](auto image, const VolumeInput & volume) {
+    CheckFiniteVoxels(image.GetPointer(), c.input);
+    DefaultPointsForVolume(options, c.targets.points, image->GetBufferedRegion().GetNumberOfPixels());
     options.metadata.insert(options.metadata.begin(), volume.metadata.begin(), volume.metadata.end());
     try
     {
@@ -53,7 +56,7 @@ Compress(const CompressOptions & c)
       throw Failure("cannot compress " + Quoted(c.input) + ": " + e.what());
     }
   });
-  WriteFileAtomically(c.output, r.bytes);
+  WriteOutputBytes(c.output, r.bytes, c.method.force);
   if (!c.method.quiet)
   {
     const double voxels = double(r.header.size.NumberOfVoxels());
@@ -67,7 +70,7 @@ Compress(const CompressOptions & c)
               << "\n"
               << "step: " << r.header.quantizationStep << "\n"
               << "scale: " << r.header.scale[0] << " " << r.header.scale[1] << " " << r.header.scale[2] << "\n"
-              << "PSNR: " << r.psnr << " dB\n"
+              << "PSNR: " << FormatPSNR(r.psnr) << "\n"
               << "seconds: " << SecondsSince(start) << "\n";
     const auto & t = r.timings;
     std::cout << "seconds by stage: smoothing " << t.smoothing << ", refinement " << t.refinement << ", decimation "
@@ -85,7 +88,7 @@ const RegisterCommand compress{ { "compress",
                                     auto c = std::make_shared<CompressOptions>();
                                     AddMethodOptions(command, c->input, c->method);
                                     command.add_option("OUTPUT", c->output, "Output .dcv file")->required();
-                                    AddTargetOptions(command, c->method.encoder);
+                                    c->targets = AddTargetOptions(command, c->method.encoder);
                                     return [c] { Compress(*c); };
                                   } } };
 } // namespace

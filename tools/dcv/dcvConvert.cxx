@@ -44,7 +44,7 @@ const RegisterCommand convert{
       command.add_flag("--quiet,-q", c->method.quiet, "Print nothing but errors");
       return [c] {
         WithVolume(c->input, c->method.series, c->output, c->method, false, [&](auto image, const VolumeInput &) {
-          WriteVolume(image.GetPointer(), c->output);
+          WriteVolume(image.GetPointer(), c->output, c->method.force);
         });
       };
     } }

@@ -39,6 +39,7 @@ struct DecompressOptions
 void
 Decompress(const DecompressOptions & d)
 {
+  CheckOutputIsNotInput({ d.input }, d.output);
   const CompressedFile file = ReadCompressedFile(d.input);
   if (!d.dicom)
   {
@@ -50,7 +51,7 @@ Decompress(const DecompressOptions & d)
     [&](auto image) {
       if (!d.dicom)
       {
-        WriteVolume(image.GetPointer(), d.output);
+        WriteVolume(image.GetPointer(), d.output, d.force);
         return;
       }
       const std::size_t sliceVoxels = std::size_t(file.header.size.x) * std::size_t(file.header.size.y);

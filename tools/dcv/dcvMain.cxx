@@ -28,6 +28,7 @@
 #include <cstring>
 #include <chrono>
 #include <iostream>
+#include <sstream>
 
 namespace dcv::tools
 {
@@ -59,7 +60,7 @@ MethodOptions::Checked(const std::string & label) const
   }
   catch (const std::invalid_argument & e)
   {
-    throw Failure(std::string("--mode: ") + e.what());
+    throw UsageError(std::string("--mode: ") + e.what());
   }
   try
   {
@@ -67,7 +68,7 @@ MethodOptions::Checked(const std::string & label) const
   }
   catch (const std::invalid_argument & e)
   {
-    throw Failure(e.what());
+    throw UsageError(e.what());
   }
   return o;
 }
@@ -182,11 +183,38 @@ AddTargetOptions(CLI::App & command, EncoderOptions & e)
   return t;
 }
 
+std::string
+FormatPSNR(double psnr)
+{
+  std::ostringstream text;
+  if (std::isinf(psnr) && psnr > 0.0)
+    text << "inf dB (exact)";
+  else
+    text << psnr << " dB";
+  return text.str();
+}
+
+void
+DefaultPointsForVolume(EncoderOptions & options, const CLI::Option * points, uint64_t voxels)
+{
+  if (points != nullptr && points->count() == 0 && options.numberOfPoints > voxels)
+  {
+    options.numberOfPoints = std::size_t(voxels);
+  }
+}
+
 double
 SecondsSince(std::chrono::steady_clock::time_point start)
 {
   return std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
 }
+
+namespace
+{
+/** Exit status: 0 done, 1 the work failed (an input, a write), 2 the command line is wrong. */
+constexpr int ExitFailure = 1;
+constexpr int ExitUsage = 2;
+} // namespace
 
 } // namespace dcv::tools
 
@@ -212,8 +240,8 @@ main(int argc, char * argv[])
   }
   catch (const CLI::ParseError & e)
   {
-    // Help and version exit 0; every usage error exits 1, as the other errors do.
-    return app.exit(e) == 0 ? 0 : 1;
+    // Help and version exit 0, usage errors 2 (README, "Exit status").
+    return app.exit(e) == 0 ? 0 : ExitUsage;
   }
   try
   {
@@ -225,15 +253,20 @@ main(int argc, char * argv[])
       }
     }
   }
+  catch (const UsageError & e)
+  {
+    std::cerr << "dcv: " << e.what() << std::endl;
+    return ExitUsage;
+  }
   catch (const itk::ExceptionObject & e)
   {
     std::cerr << "dcv: " << e.GetDescription() << std::endl;
-    return 1;
+    return ExitFailure;
   }
   catch (const std::exception & e)
   {
     std::cerr << "dcv: " << e.what() << std::endl;
-    return 1;
+    return ExitFailure;
   }
   return 0;
 }

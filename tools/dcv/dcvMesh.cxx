@@ -65,8 +65,6 @@ SplineMesh(const CompressedFile & file, const Approximation & a)
 void
 Mesh(const MeshOptions & m)
 {
-  const CompressedFile file = ReadCompressedFile(m.input);
-  CheckOutputPath(m.output, m.force);
   VtkFormat format;
   try
   {
@@ -74,15 +72,18 @@ Mesh(const MeshOptions & m)
   }
   catch (const std::invalid_argument & e)
   {
-    throw Failure(std::string("cannot write ") + e.what());
+    throw UsageError(std::string("cannot write ") + e.what());
   }
+  CheckOutputIsNotInput({ m.input }, m.output);
+  const CompressedFile file = ReadCompressedFile(m.input);
+  CheckOutputPath(m.output, m.force);
   const auto            start = std::chrono::steady_clock::now();
   const Approximation   a = DecodeMesh(file, m.limits);
   const TetrahedralMesh mesh = SplineMesh(file, a);
-  const std::string     temporary = TemporaryOutput(m.output);
+  PendingOutput         pending(m.output, m.force, false);
   try
   {
-    std::ofstream out(temporary, std::ios::binary | std::ios::trunc);
+    std::ofstream out(pending.Path(), std::ios::binary | std::ios::trunc);
     if (!out)
     {
       throw Failure("cannot write " + Quoted(m.output) + ": cannot create a file in its directory");
@@ -96,15 +97,9 @@ Mesh(const MeshOptions & m)
   }
   catch (const std::invalid_argument & e)
   {
-    FinishOutput(temporary, m.output, true);
     throw Failure("cannot write " + Quoted(m.output) + ": " + e.what());
   }
-  catch (...)
-  {
-    FinishOutput(temporary, m.output, true);
-    throw;
-  }
-  FinishOutput(temporary, m.output, false);
+  pending.Commit();
   if (!m.quiet)
   {
     std::cout << "points: " << mesh.points.size() << "\n"

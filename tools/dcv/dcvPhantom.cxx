@@ -35,7 +35,7 @@ Phantom(const PhantomOptions & p)
 {
   if (p.size < 2 || p.size > 1024)
   {
-    throw Failure("--size must be 2 to 1024, got " + std::to_string(p.size));
+    throw UsageError("--size must be 2 to 1024, got " + std::to_string(p.size));
   }
   CheckOutput(p.output, p.force);
   using ImageType = itk::Image<uint8_t, 3>;
@@ -46,7 +46,7 @@ Phantom(const PhantomOptions & p)
   image->SetRegions(extent);
   image->Allocate();
   std::copy(voxels.begin(), voxels.end(), image->GetBufferPointer());
-  WriteVolume(image.GetPointer(), p.output);
+  WriteVolume(image.GetPointer(), p.output, p.force);
 }
 
 const RegisterCommand
