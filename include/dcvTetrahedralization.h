@@ -80,6 +80,14 @@ public:
   void
   IncidentCells(VertexId v, std::vector<CellId> & cells) const;
 
+  /** Renumbers the live finite cells 0, 1, ... in the order of their current ids (ids are never reused,
+   * so without this the per-id state of a long run grows with every cell ever created). Returns the
+   * new id of every old id (NoCell for cells that died). */
+  std::vector<CellId>
+  CompactCellIds();
+  /** Number of cell ids given so far (dead cells included): the size per-id state needs. */
+  std::size_t
+  NumberOfCellIds() const;
   /** All finite cells. */
   std::vector<Cell>
   FiniteCells() const;

@@ -49,11 +49,12 @@ ApproximateToBudget(RefinementEngine & engine, std::size_t payloadBytes, double 
     n = std::clamp(budget * 8.0 / (std::log2(std::max(1.0, voxels / n)) + c), 8.0, voxels);
   }
   BudgetResult result{ {}, std::size_t(n), 0, step };
-  // (size, squared error) of encoded states.
+  // (size, squared error) of encoded states whose values are final (solved, in modes with least squares).
   std::vector<std::pair<double, double>> states;
-  auto                                   encode = [&] {
+  auto                                   encode = [&](bool final = true) {
     result.payload = EncodePayload(engine.GetApproximation(), q0, engine.GetParameters().quantizationStep, true);
-    states.emplace_back(double(result.payload.size()), engine.GetSquaredError());
+    if (final)
+      states.emplace_back(double(result.payload.size()), engine.GetSquaredError());
   };
 
   engine.Approximate(result.firstCount, [&](double f) {
@@ -61,14 +62,25 @@ ApproximateToBudget(RefinementEngine & engine, std::size_t payloadBytes, double 
       progress(FirstRunProgress * f);
   });
   encode();
-  // Adjusts the point count until the payload fills MinimumFill to all of the budget.
-  auto fit = [&] {
+  // Adjusts the point count until the payload fills MinimumFill to all of the budget. Sizes are
+  // measured without solving for least-squares values at each count (a sparse solve and a pass over the
+  // volume each); the solve follows once the count fits, and may move the size out of the window again.
+  const bool leastSquares = engine.GetParameters().leastSquares;
+  auto       fit = [&] {
+    bool solved = true; // after Approximate() and after the step choice
     for (unsigned i = 0; i < MaximumCorrections; ++i)
     {
       const double size = double(result.payload.size());
       if (size <= budget && size >= MinimumFill * budget)
       {
-        break;
+        if (solved)
+        {
+          break;
+        }
+        engine.OptimizeValues();
+        solved = true;
+        encode();
+        continue;
       }
       const std::size_t count = engine.GetNumberOfPoints();
       const double      bitsPerPoint = size * 8.0 / double(count);
@@ -77,13 +89,19 @@ ApproximateToBudget(RefinementEngine & engine, std::size_t payloadBytes, double 
       {
         target = size > budget ? count - 1 : count + 1;
       }
-      engine.Resize(target);
+      engine.Resize(target, false);
+      solved = !leastSquares;
       ++result.adjustments;
-      encode();
+      encode(solved);
       if (engine.GetNumberOfPoints() == count)
       {
         break; // exact approximation: no point left to add
       }
+    }
+    if (!solved)
+    {
+      engine.OptimizeValues();
+      encode();
     }
     // Whatever is still over the budget goes by decimation alone.
     while (double(result.payload.size()) > budget)
@@ -106,8 +124,8 @@ ApproximateToBudget(RefinementEngine & engine, std::size_t payloadBytes, double 
 
   if (stepMultiples.size() > 1)
   {
-    // Step choice on the fitted mesh: each step's values are quantized again (and solved, in modes with
-    // least squares) on it; its squared error E at size S is carried to the budget T with the local law
+    // Step choice on the fitted mesh: each step's values are quantized again on it (from the
+    // least-squares solution, in modes with least squares); its squared error E at size S is carried to the budget T with the local law
     // E ~ S^-b, b measured between the last two fitted states of different sizes (1 without them).
     // The best step is kept and the count fitted again. Measured on ../shared/data at 0.03125 and
     // 0.25 bpv, it picked the best of the three steps on 9 of 10 runs (a sweep of whole runs decided).
@@ -125,12 +143,9 @@ ApproximateToBudget(RefinementEngine & engine, std::size_t payloadBytes, double 
     const double target = TargetFill * budget;
     auto         predicted = [&] { return states.back().second * std::pow(states.back().first / target, b); };
     double       bestMultiple = 1.0, bestError = predicted(), current = 1.0;
-    auto         requantize = [&](double m) {
+    // The mesh is solved (fit() ends so): SetQuantizationStep quantizes the solution again.
+    auto requantize = [&](double m) {
       engine.SetQuantizationStep(m * step);
-      if (engine.GetParameters().leastSquares)
-      {
-        engine.OptimizeValues();
-      }
       current = m;
       encode();
     };

@@ -144,6 +144,8 @@ struct RefinementEngine::Impl
   std::vector<double>   volumeBefore; // mu_m(p), Eq. 5 at insertion (six times the volume)
   std::vector<uint32_t> stamp;        // decimation heap validity
   std::vector<char>     vertexAlive;
+  std::vector<double>   removalCost; // RemovalCost() as last computed, while removalCostValid
+  std::vector<char>     removalCostValid;
   VertexId              lastInserted{ 0 };
   Timings               timings;
 
@@ -155,6 +157,7 @@ struct RefinementEngine::Impl
   std::vector<uint64_t> cellVoxels;
   std::vector<double>   cellVolume; // six times the volume
   std::vector<char>     cellAlive;
+  std::size_t           liveCells{ 0 }; // CGAL counts its cells in linear time
 
   std::priority_queue<HeapEntry> byCellError;  // MaxTetrahedronErrorPosition
   std::priority_queue<HeapEntry> byVoxelError; // MaxErrorPosition
@@ -224,6 +227,7 @@ struct RefinementEngine::Impl
   {
     for (auto c : cells)
     {
+      liveCells -= cellAlive[c] ? 1 : 0;
       cellAlive[c] = 0;
       squaredError -= cellError[c];
     }
@@ -243,6 +247,8 @@ struct RefinementEngine::Impl
       volumeBefore.resize(n);
       stamp.resize(n);
       vertexAlive.resize(n);
+      removalCost.resize(n);
+      removalCostValid.resize(n);
     }
     lastInserted = id;
     vertexAlive[id] = 1;
@@ -404,6 +410,7 @@ struct RefinementEngine::Impl
     cellWorstVoxel[id] = s.worstVoxel;
     cellVoxels[id] = s.count;
     cellVolume[id] = s.volume;
+    liveCells += cellAlive[id] ? 0 : 1;
     cellAlive[id] = 1;
     squaredError += s.sse;
     if (s.worstVoxel != NoVoxel)
@@ -450,7 +457,61 @@ struct RefinementEngine::Impl
     for (std::size_t i = 0; i < created.size(); ++i)
     {
       Commit(created[i].id, scans[i]);
+      // The vertices whose incident cells changed are those of the new cells (every vertex of a dead
+      // cell is on the boundary of the cavity or the hole).
+      for (auto v : created[i].vertices)
+      {
+        removalCostValid[v] = 0;
+      }
     }
+  }
+
+  // Keeps the per-cell state in proportion to the live cells: cell ids are never reused, so without
+  // this the decimation rounds of a long run would hold state for every cell they ever created. Live
+  // cells keep their order (cell ids decide orders and ties), and each has exactly one entry in each
+  // heap, so the heaps rebuilt from them pop the same cells as the old ones.
+  void
+  CompactIfSparse()
+  {
+    const std::size_t live = liveCells;
+    if (mesh.NumberOfCellIds() < 3 * live + 4096)
+    {
+      return;
+    }
+    const auto renumbered = mesh.CompactCellIds();
+    if (mesh.NumberOfCellIds() != live)
+    {
+      throw std::logic_error("RefinementEngine: live cells out of step with the tetrahedralization");
+    }
+    auto       move = [&](auto & v) {
+      for (std::size_t old = 0; old < renumbered.size(); ++old)
+      {
+        if (renumbered[old] != NoCell)
+        {
+          v[renumbered[old]] = v[old]; // renumbered[old] <= old: nothing unread is overwritten
+        }
+      }
+      v.resize(live);
+      v.shrink_to_fit();
+    };
+    move(cellError);
+    move(cellSelection);
+    move(cellWorstError);
+    move(cellWorstVoxel);
+    move(cellVoxels);
+    move(cellVolume);
+    move(cellAlive);
+    std::vector<HeapEntry> bySelection, byWorst;
+    for (uint32_t c = 0; c < live; ++c)
+    {
+      if (cellWorstVoxel[c] != NoVoxel)
+      {
+        bySelection.push_back(HeapEntry{ cellSelection[c], cellWorstVoxel[c], c });
+        byWorst.push_back(HeapEntry{ cellWorstError[c], cellWorstVoxel[c], c });
+      }
+    }
+    byCellError = std::priority_queue<HeapEntry>(std::less<HeapEntry>(), std::move(bySelection));
+    byVoxelError = std::priority_queue<HeapEntry>(std::less<HeapEntry>(), std::move(byWorst));
   }
 
   // Positions in `cells` sorted by each cell's lowest vertex (z, then y, then x): visited in this order,
@@ -485,6 +546,7 @@ struct RefinementEngine::Impl
     byCellError = {};
     byVoxelError = {};
     squaredError = 0.0;
+    std::fill(removalCostValid.begin(), removalCostValid.end(), 0);
     const auto            cells = mesh.FiniteCells();
     const auto            order = SpatialOrder(cells);
     std::vector<CellScan> scans(cells.size());
@@ -510,6 +572,7 @@ struct RefinementEngine::Impl
   bool
   Step()
   {
+    CompactIfSparse();
     // Silva: odd steps take the globally worst voxel, even steps the worst voxel of the worst cell.
     const bool     global = (step % 2) == 0;
     const uint32_t cell = Top(global ? byVoxelError : byCellError, cellAlive);
@@ -551,6 +614,17 @@ struct RefinementEngine::Impl
     return without - error;
   }
 
+  double
+  CachedRemovalCost(VertexId v)
+  {
+    if (!removalCostValid[v])
+    {
+      removalCost[v] = RemovalCost(v);
+      removalCostValid[v] = 1;
+    }
+    return removalCost[v];
+  }
+
   void
   Remove(VertexId v, std::vector<VertexId> * neighbours)
   {
@@ -558,6 +632,7 @@ struct RefinementEngine::Impl
     {
       throw std::invalid_argument("RefinementEngine: vertex " + std::to_string(v) + " cannot be removed");
     }
+    CompactIfSparse();
     const GridPoint p = mesh.Point(v);
     mesh.Remove(v, killed, created);
     ++meshVersion;
@@ -709,15 +784,18 @@ RefinementEngine::Refine(std::size_t numberOfPoints, const ProgressFunction & pr
 void
 RefinementEngine::Decimate(std::size_t count)
 {
-  Impl &                            d = *m_Impl;
-  std::priority_queue<RemovalEntry> heap;
+  Impl &                    d = *m_Impl;
+  std::vector<RemovalEntry> entries;
+  entries.reserve(d.mesh.NumberOfVertices());
+  // Costs are kept between rounds: only vertices whose incident cells changed are computed again.
   for (VertexId v = NumberOfCorners; v < d.mesh.NumberOfVertexIds(); ++v)
   {
     if (d.vertexAlive[v])
     {
-      heap.push(RemovalEntry{ d.RemovalCost(v), v, ++d.stamp[v] });
+      entries.push_back(RemovalEntry{ d.CachedRemovalCost(v), v, ++d.stamp[v] });
     }
   }
+  std::priority_queue<RemovalEntry> heap(std::less<RemovalEntry>(), std::move(entries));
   std::vector<VertexId> neighbours;
   for (std::size_t removed = 0; removed < count && !heap.empty();)
   {
@@ -736,14 +814,14 @@ RefinementEngine::Decimate(std::size_t count)
     {
       if (v >= NumberOfCorners && d.vertexAlive[v])
       {
-        heap.push(RemovalEntry{ d.RemovalCost(v), v, ++d.stamp[v] });
+        heap.push(RemovalEntry{ d.CachedRemovalCost(v), v, ++d.stamp[v] });
       }
     }
   }
 }
 
 void
-RefinementEngine::Resize(std::size_t numberOfPoints)
+RefinementEngine::Resize(std::size_t numberOfPoints, bool leastSquares)
 {
   const std::size_t n = GetNumberOfPoints();
   numberOfPoints = std::max<std::size_t>(numberOfPoints, NumberOfCorners);
@@ -763,7 +841,7 @@ RefinementEngine::Resize(std::size_t numberOfPoints)
     Refine(numberOfPoints);
     m_Impl->timings.refinement += std::chrono::duration<double>(Clock::now() - start).count();
   }
-  if (m_Impl->parameters.leastSquares)
+  if (m_Impl->parameters.leastSquares && leastSquares)
   {
     start = Clock::now();
     OptimizeValues();
@@ -781,9 +859,15 @@ RefinementEngine::SetQuantizationStep(double step)
                                 std::to_string(step));
   }
   d.parameters.quantizationStep = step;
+  // A solution of this mesh is quantized again as it is: solving does not depend on the step.
+  const bool fromSolution = d.parameters.leastSquares && d.solvedMesh == d.meshVersion;
   for (VertexId v = 0; v < d.mesh.NumberOfVertexIds(); ++v)
   {
-    if (d.vertexAlive[v])
+    if (fromSolution && d.vertexAlive[v] && std::isfinite(d.solved[v]))
+    {
+      d.values[v] = d.Quantize(std::clamp(d.solved[v], d.parameters.valueMin, d.parameters.valueMax));
+    }
+    else if (d.vertexAlive[v])
     {
       const GridPoint p = d.mesh.Point(v);
       const uint64_t  voxel = d.grid.Offset(p[0], p[1], p[2]);

@@ -265,6 +265,34 @@ Tetrahedralization::IncidentCells(VertexId id, std::vector<CellId> & out) const
   }
 }
 
+std::vector<Tetrahedralization::CellId>
+Tetrahedralization::CompactCellIds()
+{
+  Impl &                                    d = *m_Impl;
+  std::vector<std::pair<CellId, CellHandle>> live;
+  live.reserve(d.dt.number_of_finite_cells());
+  for (auto c = d.dt.finite_cells_begin(); c != d.dt.finite_cells_end(); ++c)
+  {
+    live.emplace_back(c->info().id, c);
+  }
+  std::sort(live.begin(), live.end(), [](const auto & a, const auto & b) { return a.first < b.first; });
+  std::vector<CellId> renumbered(d.cells.size(), NoCell);
+  d.cells.resize(live.size());
+  for (std::size_t i = 0; i < live.size(); ++i)
+  {
+    renumbered.at(live[i].first) = CellId(i);
+    live[i].second->info().id = CellId(i);
+    d.cells[i] = live[i].second;
+  }
+  return renumbered;
+}
+
+std::size_t
+Tetrahedralization::NumberOfCellIds() const
+{
+  return m_Impl->cells.size();
+}
+
 std::vector<Tetrahedralization::Cell>
 Tetrahedralization::FiniteCells() const
 {

@@ -261,6 +261,63 @@ TEST(RefinementEngine, DecimationLeavesTheScheduledNumberOfPoints)
   EXPECT_NEAR(scheduled.GetSquaredError(), sse, 1e-3 * sse);
 }
 
+TEST(RefinementEngine, LongRunsKeepStateForTheLiveCellsOnly)
+{
+  // The decimation rounds kill many more cells than stay alive; ids are compacted on the way, and the
+  // removal costs kept between rounds are those computed afresh.
+  const GridSize           grid{ 40, 36, 32 };
+  const std::vector<float> image = PhantomVolume(grid);
+  RefinementEngine         engine(image.data(), grid, ParametersForMode(Mode::Best));
+  engine.Approximate(3000);
+  const auto stats = engine.GetCellStatistics();
+  ASSERT_FALSE(stats.empty());
+  uint32_t largest = 0;
+  for (const auto & s : stats)
+  {
+    largest = std::max(largest, s.id);
+  }
+  // Without compaction the ids of a 3000-point schedule run past 150,000.
+  EXPECT_LT(largest, 3 * stats.size() + 4096);
+  // The accounting survives the renumbering.
+  std::vector<float> out(grid.NumberOfVoxels());
+  Rasterize(engine.GetApproximation(), out.data());
+  const double sse = SquaredError(image.data(), out.data(), grid.NumberOfVoxels());
+  EXPECT_NEAR(engine.GetSquaredError(), sse, 1e-6 * sse);
+}
+
+TEST(RefinementEngine, DecimationChoosesByTheFreshRemovalCosts)
+{
+  const GridSize           grid{ 30, 28, 26 };
+  const std::vector<float> image = PhantomVolume(grid);
+  RefinementParameters     p;
+  p.decimation = true;
+  RefinementEngine engine(image.data(), grid, p);
+  engine.Approximate(700); // costs kept through 9 rounds of decimation and refinement
+  // The vertex of smallest fresh cost (ties: the highest id, as the decimation heap orders them).
+  double                     smallest = std::numeric_limits<double>::infinity();
+  RefinementEngine::VertexId chosen = 0;
+  std::size_t                live = 0;
+  for (RefinementEngine::VertexId v = 8; v < 20000; ++v)
+  {
+    try
+    {
+      const double cost = engine.EstimateRemovalCost(v);
+      ++live;
+      if (cost <= smallest)
+      {
+        smallest = cost;
+        chosen = v;
+      }
+    }
+    catch (const std::invalid_argument &) // removed, or never inserted
+    {
+    }
+  }
+  ASSERT_EQ(live + 8, engine.GetNumberOfPoints());
+  engine.Decimate(1);
+  EXPECT_THROW(engine.EstimateRemovalCost(chosen), std::invalid_argument); // it is the one removed
+}
+
 TEST(RefinementEngine, ResizeReachesTheCountBothWays)
 {
   const GridSize           grid{ 32, 30, 28 };

@@ -151,6 +151,44 @@ TEST(Tetrahedralization, RemovalGivesTheTetrahedralizationOfTheRest)
   EXPECT_EQ(Cells(points, after), Cells(rest, Tetrahedralize(rest)));
 }
 
+TEST(Tetrahedralization, CompactedCellIdsAreDenseAndKeepTheirOrder)
+{
+  const GridSize         grid{ 16, 16, 16 };
+  std::vector<GridPoint> points = test::RandomPoints(grid, 300, 7);
+  Tetrahedralization     mesh;
+  mesh.InsertMany(points);
+  std::vector<uint32_t>                 killed;
+  std::vector<Tetrahedralization::Cell> created;
+  for (uint32_t v = 8; v < points.size(); v += 2)
+  {
+    mesh.Remove(v, killed, created);
+  }
+  const auto before = mesh.FiniteCells();
+  ASSERT_GT(mesh.NumberOfCellIds(), before.size()); // dead ids are kept until compaction
+  const auto renumbered = mesh.CompactCellIds();
+  EXPECT_EQ(renumbered.size(), std::size_t(before.back().id) + 1);
+  EXPECT_EQ(mesh.NumberOfCellIds(), before.size());
+  const auto after = mesh.FiniteCells();
+  ASSERT_EQ(after.size(), before.size());
+  for (std::size_t i = 0; i < after.size(); ++i)
+  {
+    EXPECT_EQ(after[i].id, i);                                    // dense
+    EXPECT_EQ(after[i].vertices, before[i].vertices);              // same cells, same order
+    EXPECT_EQ(renumbered[before[i].id], Tetrahedralization::CellId(i));
+  }
+  // The new ids work as hints and in further operations.
+  mesh.Insert({ 3, 4, 5 }, after.front().id, killed, created);
+  for (auto c : killed)
+  {
+    EXPECT_LT(c, after.size());
+  }
+  for (const auto & c : created)
+  {
+    EXPECT_GE(c.id, after.size());
+  }
+  EXPECT_TRUE(mesh.IsValid());
+}
+
 TEST(Tetrahedralization, DuplicatePointsAreRefused)
 {
   std::vector<GridPoint> points = test::Corners(GridSize{ 4, 4, 4 });
