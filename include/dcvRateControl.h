@@ -25,6 +25,7 @@
 #include <cmath>
 #include <cstdint>
 #include <functional>
+#include <limits>
 #include <vector>
 
 /** \file dcvRateControl.h
@@ -57,6 +58,19 @@ constexpr unsigned MaximumCorrections = 6;
 /** Share of the progress spent by the first run of the method, and by the end of the first fit. */
 constexpr double FirstRunProgress = 0.7;
 constexpr double FirstFitProgress = 0.8;
+/** Share of the first run's progress given to its first refinement. */
+constexpr double RefinementShare = 0.4;
+/** A competitor's squared error abandons the points when theirs, carried to the target size (error ~
+ * size^-4 below it, size^-0.5 above: optimistic, see ApproximateToBudget) and divided by this, is
+ * still above it: after the first refinement, where decimation and least squares then lowered the
+ * error at the same count by at most 1.8 times (2.5 dB; ../shared/data at 0.03125 to 0.25 bpv, mode
+ * best) ... */
+constexpr double AbandonAfterRefinement = 2.5;
+/** ... and after the first run when its size is within this share of the target, where the fit and the
+ * step choice then lowered the error by at most 1.07 times (0.3 dB). The margins also cover the bytes
+ * the points leave to a residual layer (+0.3 dB at most). */
+constexpr double AbandonNearTarget = 0.9;
+constexpr double AbandonAfterFirstRun = 1.2;
 /** The steps tried, as multiples of DefaultQuantizationStep (measured at 0.03125 to 0.25 bpv on
  * ../shared/data: each of the three wins somewhere). */
 inline const std::vector<double> &
@@ -97,10 +111,14 @@ struct BudgetResult
   std::size_t          firstCount;  // the point count the method ran with
   unsigned             adjustments; // Resize() steps after it
   double               step;        // the quantization step of the payload
+  bool                 abandoned{ false }; // the points cannot beat the competitor (no payload)
 };
 
 /** Approximates with the payload of best quality that fits `payloadBytes` (at least MinimumFill of it
- * unless the approximation becomes exact first), running the method once.
+ * unless the approximation becomes exact first), running the method once. `competitorError`: the squared
+ * error another coding reaches in the same bytes; the points are abandoned (BudgetResult::abandoned, no
+ * payload, the engine left as it is) as soon as an optimistic estimate of theirs stays above it (see
+ * AbandonAfterRefinement).
  *
  * Point count: the coded size is nearly proportional to the count, at a number of bits per point that
  * grows slowly as points get sparser. So the method runs once, with a count predicted by
@@ -114,7 +132,8 @@ struct BudgetResult
 DelaunayCompression_EXPORT BudgetResult
 ApproximateToBudget(RefinementEngine & engine, std::size_t payloadBytes, double q0,
                     const std::vector<double> &                stepMultiples = { 1.0 },
-                    const RefinementEngine::ProgressFunction & progress = RefinementEngine::ProgressFunction());
+                    const RefinementEngine::ProgressFunction & progress = RefinementEngine::ProgressFunction(),
+                    double competitorError = std::numeric_limits<double>::infinity());
 
 /** The squared error a decoder's image will have for the engine's current approximation. */
 using DecodedErrorFunction = std::function<double(const RefinementEngine &)>;

@@ -149,12 +149,10 @@ public:
   Decimate(std::size_t count);
 
   /** Brings the point count to `numberOfPoints` on the current tetrahedralization: Decimate() when
-   * there are more, Refine() when fewer, then least-squares values again when they are on and
-   * `leastSquares` is true (false: new vertices keep the values chosen at their insertion, the others
-   * theirs, until OptimizeValues()). Rate control uses it to adjust a finished approximation instead
-   * of running the method again. */
+   * there are more, Refine() when fewer, then least-squares values again when they are on. Rate
+   * control uses it to adjust a finished approximation instead of running the method again. */
   void
-  Resize(std::size_t numberOfPoints, bool leastSquares = true);
+  Resize(std::size_t numberOfPoints);
 
   /** Changes the quantization step of the vertex values: each value is quantized again, from the
    * least-squares solution of the current tetrahedralization when the mode has least squares and

@@ -249,25 +249,85 @@ Corners(const GridSize & grid, const GridScale & scale, double value)
   return a;
 }
 
-/** Tries the residual layer in the bytes the spline's payload leaves, and over the corners with all of
- * the budget; keeps in r and payload whichever of the three decodes closest to the input. */
+/** The other way to spend a budget: the 8 corners under a residual layer that takes all of it. */
+struct CornersCandidate
+{
+  ResidualChoice       choice;
+  Approximation        spline;
+  std::vector<uint8_t> payload;
+  double               step{ 0.0 };
+};
+
+/** Below this many bytes a codestream is mostly its own headers. */
+constexpr std::size_t MinimumCodestream = 256;
+
+std::size_t
+LayerRoom(std::size_t fileBytes, std::size_t headerBytes, std::size_t payloadBytes)
+{
+  const std::size_t used = headerBytes + payloadBytes + ResidualLayerFieldBytes;
+  return fileBytes > used ? fileBytes - used : 0;
+}
+
+/** Codes the residual layer over the corners; no codestream when the budget leaves no room for one. Done
+ * before the points, whose rate control stops as soon as they cannot reach its error. */
+CornersCandidate
+TryCorners(const EncoderInput & input, std::size_t fileBytes, std::size_t headerBytes, double minimum, double maximum,
+           const GridScale & scale, double peak)
+{
+  const PixelType  type = input.header.pixelType;
+  const double     step = ResidualStep(peak, IsInteger(type));
+  const double     q0 = minimum;
+  CornersCandidate candidate;
+  if (!(step > 0.0) || !(maximum > minimum))
+    return candidate; // a constant volume: the points are exact
+  // Splits between the two layers measured worse than either alone (ct-avm-4mm at 0.0625 bpv: 39.44 dB
+  // with all to the points, 38.83 and 38.34 with a half and a quarter), so the other candidate is all
+  // to the residual, where per-slice transform coding wins (thick slices, higher rates).
+  // The corners' value puts the input's minimum on the lowest sample JPEG 2000 holds at the precision
+  // the range needs, so that its decoder clips the ringing below the background (air in a CT) away:
+  // measured +0.38 dB on the 5 mm CT series at 0.03125 bpv over a value in the middle of the range.
+  // The corners' step is that offset, so the value is on their lattice q0 + k q (q0 = the minimum).
+  double offset = step;
+  while (minimum + 2.0 * offset - step < maximum) // 2 offset - step: the range p bits hold
+    offset *= 2.0;
+  candidate.step = offset;
+  candidate.spline = Corners(input.header.size, scale, q0 + candidate.step);
+  candidate.payload = EncodePayload(candidate.spline, q0, candidate.step);
+  const std::size_t room = LayerRoom(fileBytes, headerBytes, candidate.payload.size());
+  if (room < MinimumCodestream)
+    return candidate;
+  // The codings in the order that spares trials. Over the dev volumes at 0.03125 and 0.125 bpv (20
+  // runs), 9/7 beat 5/3 every time and one component per slice beat the mosaic once, by 0.05 dB;
+  // the inter-slice wavelet won wherever slices are alike (avg152t1 at 0.125 bpv: 35.3 dB with 4
+  // levels, 30.0 with the points, 26.2 without it; the 5 mm CT series at 0.03125: 33.7 dB with 2
+  // levels, 31.5 before) and lost on ct-avm-4mm (1 level: -1.2 dB), where components come next.
+  ResidualSearch search(input.voxels, type, candidate.spline, step, room);
+  const int32_t  most = InterSliceLevels(input.header.size.z);
+  const double   flat = search.Try({ Wavelet::Irreversible97, Arrangement::Mosaic, 0 });
+  const double   twoLevels = most > 0 ? search.Try({ Wavelet::Irreversible97, Arrangement::Mosaic, std::min(2, most) })
+                                      : std::numeric_limits<double>::infinity();
+  if (twoLevels < flat && most > 2)
+    search.Try({ Wavelet::Irreversible97, Arrangement::Mosaic, std::min(4, most) });
+  else if (!(twoLevels < flat))
+    search.Try({ Wavelet::Irreversible97, Arrangement::Components, 0 });
+  candidate.choice = std::move(search).Best();
+  return candidate;
+}
+
+/** Tries the residual layer in the bytes the spline's payload leaves (unless the points were abandoned),
+ * and takes the corners' candidate; keeps in r and payload whichever decodes closest to the input. */
 void
-ChooseLayers(const EncoderInput & input, std::size_t fileBytes, std::size_t headerBytes, double minimum, double maximum,
-             EncoderResult & r, std::vector<uint8_t> & payload)
+ChooseLayers(const EncoderInput & input, std::size_t fileBytes, std::size_t headerBytes, bool pointsAbandoned,
+             CornersCandidate && corners, EncoderResult & r, std::vector<uint8_t> & payload)
 {
   const PixelType type = input.header.pixelType;
   const double    step = ResidualStep(r.peak, IsInteger(type));
-  const double    q0 = r.header.quantizationOrigin, q = r.quantizationStep;
-  double          bestError = DecodedSquaredError(r.approximation, type, input.voxels);
+  const double    q = r.quantizationStep;
+  double          bestError = pointsAbandoned ? std::numeric_limits<double>::infinity()
+                                              : DecodedSquaredError(r.approximation, type, input.voxels);
   // Nothing decodes closer than exactly (a constant volume, whose step and peak are 0 as well).
   if (!(bestError > 0.0) || !(step > 0.0))
     return;
-  // Below this many bytes a codestream is mostly its own headers.
-  constexpr std::size_t minimumCodestream = 256;
-  auto                  room = [&](std::size_t payloadBytes) {
-    const std::size_t used = headerBytes + payloadBytes + ResidualLayerFieldBytes;
-    return fileBytes > used ? fileBytes - used : 0;
-  };
   auto keep = [&](ResidualChoice && c, Approximation && spline, std::vector<uint8_t> && splinePayload, double step) {
     if (c.codestream.empty() || !(c.squaredError < bestError))
       return;
@@ -282,49 +342,19 @@ ChooseLayers(const EncoderInput & input, std::size_t fileBytes, std::size_t head
     payload = std::move(splinePayload);
   };
   // Measured on the 5 mm CT series at 0.125 bpv, a residual in the 2% the points leave: +0.35 dB.
-  if (room(payload.size()) >= minimumCodestream)
+  if (!pointsAbandoned && LayerRoom(fileBytes, headerBytes, payload.size()) >= MinimumCodestream)
   {
     ResidualChoice       c = ChooseResidualLayer(input.voxels,
                                            type,
                                            r.approximation,
                                            step,
-                                           room(payload.size()),
+                                           LayerRoom(fileBytes, headerBytes, payload.size()),
                                            { { Wavelet::Irreversible97, Arrangement::Mosaic } });
     Approximation        spline = r.approximation;
     std::vector<uint8_t> splinePayload = payload;
     keep(std::move(c), std::move(spline), std::move(splinePayload), q);
   }
-  // Splits between the two layers measured worse than either alone (ct-avm-4mm at 0.0625 bpv: 39.44 dB
-  // with all to the points, 38.83 and 38.34 with a half and a quarter), so the other candidate is all
-  // to the residual, where per-slice transform coding wins (thick slices, higher rates).
-  // The corners' value puts the input's minimum on the lowest sample JPEG 2000 holds at the precision
-  // the range needs, so that its decoder clips the ringing below the background (air in a CT) away:
-  // measured +0.38 dB on the 5 mm CT series at 0.03125 bpv over a value in the middle of the range.
-  // The corners' step is that offset, so the value is on their lattice q0 + k q (q0 = the minimum).
-  double offset = step;
-  while (minimum + 2.0 * offset - step < maximum) // 2 offset - step: the range p bits hold
-    offset *= 2.0;
-  const double         cornersStep = offset;
-  Approximation        corners = Corners(input.header.size, r.header.scale, q0 + cornersStep);
-  std::vector<uint8_t> cornersPayload = EncodePayload(corners, q0, cornersStep);
-  if (room(cornersPayload.size()) >= minimumCodestream)
-  {
-    // The codings in the order that spares trials. Over the dev volumes at 0.03125 and 0.125 bpv (20
-    // runs), 9/7 beat 5/3 every time and one component per slice beat the mosaic once, by 0.05 dB;
-    // the inter-slice wavelet won wherever slices are alike (avg152t1 at 0.125 bpv: 35.3 dB with 4
-    // levels, 30.0 with the points, 26.2 without it; the 5 mm CT series at 0.03125: 33.7 dB with 2
-    // levels, 31.5 before) and lost on ct-avm-4mm (1 level: -1.2 dB), where components come next.
-    ResidualSearch search(input.voxels, type, corners, step, room(cornersPayload.size()));
-    const int32_t  most = InterSliceLevels(input.header.size.z);
-    const double   flat = search.Try({ Wavelet::Irreversible97, Arrangement::Mosaic, 0 });
-    const double twoLevels = most > 0 ? search.Try({ Wavelet::Irreversible97, Arrangement::Mosaic, std::min(2, most) })
-                                      : std::numeric_limits<double>::infinity();
-    if (twoLevels < flat && most > 2)
-      search.Try({ Wavelet::Irreversible97, Arrangement::Mosaic, std::min(4, most) });
-    else if (!(twoLevels < flat))
-      search.Try({ Wavelet::Irreversible97, Arrangement::Components, 0 });
-    keep(std::move(search).Best(), std::move(corners), std::move(cornersPayload), cornersStep);
-  }
+  keep(std::move(corners.choice), std::move(corners.spline), std::move(corners.payload), corners.step);
 }
 
 /** Approximate() and, with `coded`, the payload as rate control measured it (or coded once here). */
@@ -378,6 +408,16 @@ Run(const EncoderInput & input, const EncoderOptions & o, bool coded, std::vecto
   // The file is the payload plus a header that depends on the geometry and the metadata only.
   const double fileBytes = std::floor(o.bitsPerVoxel * double(voxels) / 8.0);
   const double headerBytes = double(SerializeFile(r.header, {}).size());
+  const bool       layers = coded && o.bitsPerVoxel > 0.0 && o.residualLayer;
+  CornersCandidate corners;
+  bool             pointsAbandoned = false;
+  if (layers)
+  {
+    const auto start = std::chrono::steady_clock::now();
+    corners = TryCorners(
+      input, std::size_t(fileBytes), std::size_t(headerBytes), *range.first, *range.second, parameters.scale, parameters.peak);
+    r.timings.residualLayer += std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+  }
   if (o.bitsPerVoxel > 0.0)
   {
     try
@@ -386,10 +426,13 @@ Run(const EncoderInput & input, const EncoderOptions & o, bool coded, std::vecto
                                            std::size_t(std::max(0.0, fileBytes - headerBytes)),
                                            parameters.quantizationOrigin,
                                            automaticStep ? RateControl::StepMultiples() : std::vector<double>{ 1.0 },
-                                           o.progress);
+                                           o.progress,
+                                           corners.choice.codestream.empty() ? std::numeric_limits<double>::infinity()
+                                                                             : corners.choice.squaredError);
       r.quantizationStep = b.step;
       r.adjustments = b.adjustments;
       payload = std::move(b.payload);
+      pointsAbandoned = b.abandoned;
     }
     catch (const std::length_error & e)
     {
@@ -422,18 +465,18 @@ Run(const EncoderInput & input, const EncoderOptions & o, bool coded, std::vecto
     engine.Approximate(o.numberOfPoints, o.progress);
   }
   r.approximation = engine.GetApproximation();
-  if (coded && payload.empty())
+  if (coded && payload.empty() && !pointsAbandoned)
   {
     payload = EncodePayload(r.approximation, parameters.quantizationOrigin, r.quantizationStep, true);
   }
   r.squaredError = engine.GetSquaredError();
   r.smoothedPSNR = engine.GetSmoothedPSNR();
   r.peak = parameters.peak;
-  if (coded && o.bitsPerVoxel > 0.0 && o.residualLayer)
+  if (layers)
   {
-    const auto layers = std::chrono::steady_clock::now();
-    ChooseLayers(input, std::size_t(fileBytes), std::size_t(headerBytes), *range.first, *range.second, r, payload);
-    r.timings.residualLayer = std::chrono::duration<double>(std::chrono::steady_clock::now() - layers).count();
+    const auto start = std::chrono::steady_clock::now();
+    ChooseLayers(input, std::size_t(fileBytes), std::size_t(headerBytes), pointsAbandoned, std::move(corners), r, payload);
+    r.timings.residualLayer += std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
   }
   r.header.quantizationStep = r.quantizationStep > 0.0 ? r.quantizationStep : 1.0;
   r.header.numberOfPoints = uint32_t(r.approximation.points.size());

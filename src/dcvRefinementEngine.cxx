@@ -67,6 +67,24 @@ struct RemovalEntry
   }
 };
 
+/** Adds the seconds of its scope to a stage's total. */
+class StageTimer
+{
+public:
+  explicit StageTimer(double & total)
+    : m_Total(total)
+    , m_Start(std::chrono::steady_clock::now())
+  {}
+  ~StageTimer() { m_Total += std::chrono::duration<double>(std::chrono::steady_clock::now() - m_Start).count(); }
+  StageTimer(const StageTimer &) = delete;
+  StageTimer &
+  operator=(const StageTimer &) = delete;
+
+private:
+  double &                              m_Total;
+  std::chrono::steady_clock::time_point m_Start;
+};
+
 /** What rasterizing a cell against the image gives: its error sums, voxel count and worst voxel. */
 struct CellScan
 {
@@ -725,31 +743,20 @@ RefinementEngine::Approximate(std::size_t numberOfPoints, const ProgressFunction
     })
                            : ProgressFunction();
   };
-  using Clock = std::chrono::steady_clock;
-  auto seconds = [](Clock::time_point since) { return std::chrono::duration<double>(Clock::now() - since).count(); };
-  d.timings = Timings();
-  auto start = Clock::now();
-  Refine(numberOfPoints, part(numberOfPoints));
-  d.timings.refinement += seconds(start);
+  Refine(numberOfPoints, part(numberOfPoints)); // nothing to do when Refine() reached the count first
   if (d.parameters.decimation)
   {
     for (std::size_t k = numberOfPoints / 2; k > 0; k /= 2)
     {
       const std::size_t before = GetNumberOfPoints();
-      start = Clock::now();
       Decimate(std::min(k, before > NumberOfCorners ? before - NumberOfCorners : 0));
-      d.timings.decimation += seconds(start);
       part(k);
-      start = Clock::now();
       Refine(before, part(k));
-      d.timings.refinement += seconds(start);
     }
   }
   if (d.parameters.leastSquares)
   {
-    start = Clock::now();
     OptimizeValues();
-    d.timings.leastSquares = seconds(start);
   }
   if (progress)
   {
@@ -761,6 +768,7 @@ void
 RefinementEngine::Refine(std::size_t numberOfPoints, const ProgressFunction & progress)
 {
   Impl &            d = *m_Impl;
+  const StageTimer  timer(d.timings.refinement);
   const std::size_t start = d.mesh.NumberOfVertices();
   const std::size_t total = numberOfPoints > start ? numberOfPoints - start : 0;
   const std::size_t every = std::max<std::size_t>(1, total / 100);
@@ -785,6 +793,7 @@ void
 RefinementEngine::Decimate(std::size_t count)
 {
   Impl &                    d = *m_Impl;
+  const StageTimer          timer(d.timings.decimation);
   std::vector<RemovalEntry> entries;
   entries.reserve(d.mesh.NumberOfVertices());
   // Costs are kept between rounds: only vertices whose incident cells changed are computed again.
@@ -821,7 +830,7 @@ RefinementEngine::Decimate(std::size_t count)
 }
 
 void
-RefinementEngine::Resize(std::size_t numberOfPoints, bool leastSquares)
+RefinementEngine::Resize(std::size_t numberOfPoints)
 {
   const std::size_t n = GetNumberOfPoints();
   numberOfPoints = std::max<std::size_t>(numberOfPoints, NumberOfCorners);
@@ -829,23 +838,17 @@ RefinementEngine::Resize(std::size_t numberOfPoints, bool leastSquares)
   {
     return;
   }
-  using Clock = std::chrono::steady_clock;
-  auto start = Clock::now();
   if (numberOfPoints < n)
   {
     Decimate(n - numberOfPoints);
-    m_Impl->timings.decimation += std::chrono::duration<double>(Clock::now() - start).count();
   }
   else
   {
     Refine(numberOfPoints);
-    m_Impl->timings.refinement += std::chrono::duration<double>(Clock::now() - start).count();
   }
-  if (m_Impl->parameters.leastSquares && leastSquares)
+  if (m_Impl->parameters.leastSquares)
   {
-    start = Clock::now();
     OptimizeValues();
-    m_Impl->timings.leastSquares += std::chrono::duration<double>(Clock::now() - start).count();
   }
 }
 
@@ -886,7 +889,8 @@ RefinementEngine::SetQuantizationStep(double step)
 double
 RefinementEngine::OptimizeValues()
 {
-  Impl & d = *m_Impl;
+  Impl &           d = *m_Impl;
+  const StageTimer timer(d.timings.leastSquares);
   // The solution depends on the mesh and the image only: the step trials of rate control, which
   // requantize the values on one mesh, reuse it.
   if (d.solvedMesh != d.meshVersion)

@@ -308,6 +308,35 @@ TEST(Codec, RateControlFillsTheBudgetOnRealData)
   }
 }
 
+TEST(Codec, RateControlAbandonsThePointsOnlyForABetterCompetitor)
+{
+  const GridSize           grid{ 48, 44, 40 };
+  const auto               bytes = SheppLoganPhantom(grid);
+  const std::vector<float> image(bytes.begin(), bytes.end());
+  const std::size_t        budget = std::size_t(0.0625 * double(grid.NumberOfVoxels()) / 8.0) - 90;
+  RefinementParameters     p = ParametersForMode(Mode::Best);
+  p.quantizationStep = 4.0;
+  auto run = [&](double competitorError, RefinementEngine::Timings & timings) {
+    RefinementEngine   engine(image.data(), grid, p);
+    const BudgetResult r = ApproximateToBudget(engine, budget, 0.0, { 1.0, 2.0, 4.0 }, {}, competitorError);
+    timings = engine.GetTimings();
+    return std::make_pair(r, engine.GetSquaredError());
+  };
+  RefinementEngine::Timings timings;
+  const auto [full, fullError] = run(std::numeric_limits<double>::infinity(), timings);
+  ASSERT_FALSE(full.abandoned);
+  ASSERT_GT(fullError, 0.0);
+  // A competitor that is exact: abandoned after the first refinement, before any decimation.
+  const auto [exact, exactError] = run(0.0, timings);
+  EXPECT_TRUE(exact.abandoned);
+  EXPECT_TRUE(exact.payload.empty());
+  EXPECT_EQ(timings.decimation, 0.0);
+  // A competitor the points beat (by 3 dB): they go to the end, and give the same file as without one.
+  const auto [beaten, beatenError] = run(2.0 * fullError, timings);
+  EXPECT_FALSE(beaten.abandoned);
+  EXPECT_EQ(beaten.payload, full.payload);
+}
+
 TEST(Codec, RateControlRefusesABudgetTheCornersExceed)
 {
   const GridSize           grid{ 20, 20, 20 };

@@ -311,6 +311,33 @@ TEST(Encoder, SparesTheBilateralFilterWhenTheEngineWouldDropIStar)
   EXPECT_EQ(used.GetEstimatedSmoothedPSNR(), 0.0);
 }
 
+TEST(Encoder, AbandonsThePointsWhereTheResidualLayerWinsByFar)
+{
+  // Every slice the same fine texture: the inter-slice wavelet leaves one slice to code, the points
+  // would need thousands of vertices per slice. The corners' layer is coded first, and the points stop
+  // after their first refinement.
+  auto image = ImageType::New();
+  image->SetRegions(itk::Size<3>{ { 48, 48, 32 } });
+  image->Allocate();
+  std::mt19937 random(11);
+  std::vector<uint8_t> slice(48 * 48);
+  for (auto & v : slice)
+    v = uint8_t(random() % 200);
+  for (itk::ImageRegionIteratorWithIndex<ImageType> it(image, image->GetBufferedRegion()); !it.IsAtEnd(); ++it)
+    it.Set(slice[std::size_t(it.GetIndex()[1] * 48 + it.GetIndex()[0])]);
+  dcv::EncoderOptions options;
+  options.bitsPerVoxel = 0.5;
+  const auto r = itk::DCVEncode(image.GetPointer(), options);
+  EXPECT_EQ(r.header.numberOfPoints, 8u);
+  EXPECT_GT(r.header.residualLevels, 0);
+  EXPECT_EQ(r.timings.decimation, 0.0) << "the points went past their first refinement";
+  EXPECT_GT(r.psnr, 30.0);
+  // The phantom at a low rate: the points win, and are not abandoned.
+  const auto phantom = itk::DCVEncode(Phantom({ 56, 48, 40 }).GetPointer(), options);
+  EXPECT_GT(phantom.header.numberOfPoints, 8u);
+  EXPECT_GT(phantom.timings.decimation, 0.0);
+}
+
 TEST(Encoder, SameFileWhateverTheNumberOfThreads)
 {
   // Large enough that the rescans and the least-squares assembly split over threads (thousands of
