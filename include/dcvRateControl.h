@@ -115,8 +115,9 @@ struct BudgetResult
 };
 
 /** Approximates with the payload of best quality that fits `payloadBytes` (at least MinimumFill of it
- * unless the approximation becomes exact first), running the method once. `competitorError`: the squared
- * error another coding reaches in the same bytes; the points are abandoned (BudgetResult::abandoned, no
+ * unless the approximation becomes exact first), running the method once. `competitor`: the squared error
+ * another coding reaches in the same bytes (asked for once, after the first refinement, so that it can
+ * be computed meanwhile on another thread; none: infinity); the points are abandoned (BudgetResult::abandoned, no
  * payload, the engine left as it is) as soon as an optimistic estimate of theirs stays above it (see
  * AbandonAfterRefinement).
  *
@@ -133,7 +134,7 @@ DelaunayCompression_EXPORT BudgetResult
 ApproximateToBudget(RefinementEngine & engine, std::size_t payloadBytes, double q0,
                     const std::vector<double> &                stepMultiples = { 1.0 },
                     const RefinementEngine::ProgressFunction & progress = RefinementEngine::ProgressFunction(),
-                    double competitorError = std::numeric_limits<double>::infinity());
+                    const std::function<double()> &            competitor = {});
 
 /** The squared error a decoder's image will have for the engine's current approximation. */
 using DecodedErrorFunction = std::function<double(const RefinementEngine &)>;

@@ -24,6 +24,7 @@
 
 #include <algorithm>
 #include <chrono>
+#include <future>
 #include <cmath>
 #include <cstdio>
 #include <limits>
@@ -411,13 +412,32 @@ Run(const EncoderInput & input, const EncoderOptions & o, bool coded, std::vecto
   const bool       layers = coded && o.bitsPerVoxel > 0.0 && o.residualLayer;
   CornersCandidate corners;
   bool             pointsAbandoned = false;
+  // The corners' layer is coded on a thread of its own while the points' first refinement runs (mostly
+  // on one thread); rate control waits for it at its first check. Neither depends on the other, so the
+  // file is the same as if they ran one after the other.
+  std::future<CornersCandidate> cornersLater;
   if (layers)
   {
-    const auto start = std::chrono::steady_clock::now();
-    corners = TryCorners(
-      input, std::size_t(fileBytes), std::size_t(headerBytes), *range.first, *range.second, parameters.scale, parameters.peak);
-    r.timings.residualLayer += std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+    cornersLater = std::async(std::launch::async, [&, threads = CurrentThreads()] {
+      return WithThreads(threads, [&] {
+        const auto       start = std::chrono::steady_clock::now();
+        CornersCandidate c = TryCorners(input,
+                                        std::size_t(fileBytes),
+                                        std::size_t(headerBytes),
+                                        *range.first,
+                                        *range.second,
+                                        parameters.scale,
+                                        parameters.peak);
+        r.timings.residualLayer += std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+        return c;
+      });
+    });
   }
+  auto cornersDone = [&]() -> const CornersCandidate & {
+    if (cornersLater.valid())
+      corners = cornersLater.get();
+    return corners;
+  };
   if (o.bitsPerVoxel > 0.0)
   {
     try
@@ -427,8 +447,11 @@ Run(const EncoderInput & input, const EncoderOptions & o, bool coded, std::vecto
                                            parameters.quantizationOrigin,
                                            automaticStep ? RateControl::StepMultiples() : std::vector<double>{ 1.0 },
                                            o.progress,
-                                           corners.choice.codestream.empty() ? std::numeric_limits<double>::infinity()
-                                                                             : corners.choice.squaredError);
+                                           [&] {
+                                             const CornersCandidate & c = cornersDone();
+                                             return c.choice.codestream.empty() ? std::numeric_limits<double>::infinity()
+                                                                                : c.choice.squaredError;
+                                           });
       r.quantizationStep = b.step;
       r.adjustments = b.adjustments;
       payload = std::move(b.payload);
@@ -474,6 +497,7 @@ Run(const EncoderInput & input, const EncoderOptions & o, bool coded, std::vecto
   r.peak = parameters.peak;
   if (layers)
   {
+    cornersDone();
     const auto start = std::chrono::steady_clock::now();
     ChooseLayers(input, std::size_t(fileBytes), std::size_t(headerBytes), pointsAbandoned, std::move(corners), r, payload);
     r.timings.residualLayer += std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();

@@ -31,7 +31,7 @@ using namespace RateControl;
 BudgetResult
 ApproximateToBudget(RefinementEngine & engine, std::size_t payloadBytes, double q0,
                     const std::vector<double> & stepMultiples, const RefinementEngine::ProgressFunction & progress,
-                    double competitorError)
+                    const std::function<double()> & competitor)
 {
   const double step = engine.GetParameters().quantizationStep;
   if (!(step > 0.0) || stepMultiples.empty() ||
@@ -72,6 +72,7 @@ ApproximateToBudget(RefinementEngine & engine, std::size_t payloadBytes, double 
     if (progress)
       progress(FirstRunProgress * RefinementShare * f);
   });
+  const double competitorError = competitor ? competitor() : std::numeric_limits<double>::infinity();
   if (std::isfinite(competitorError))
   {
     const double refinedSize = double(

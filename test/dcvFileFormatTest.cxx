@@ -318,7 +318,8 @@ TEST(Codec, RateControlAbandonsThePointsOnlyForABetterCompetitor)
   p.quantizationStep = 4.0;
   auto run = [&](double competitorError, RefinementEngine::Timings & timings) {
     RefinementEngine   engine(image.data(), grid, p);
-    const BudgetResult r = ApproximateToBudget(engine, budget, 0.0, { 1.0, 2.0, 4.0 }, {}, competitorError);
+    const BudgetResult r =
+      ApproximateToBudget(engine, budget, 0.0, { 1.0, 2.0, 4.0 }, {}, [competitorError] { return competitorError; });
     timings = engine.GetTimings();
     return std::make_pair(r, engine.GetSquaredError());
   };
