@@ -27,6 +27,7 @@
 #include <cmath>
 #include <cstdio>
 #include <limits>
+#include <memory>
 #include <stdexcept>
 #include <string>
 #include <tuple>
@@ -252,26 +253,44 @@ Corners(const GridSize & grid, const GridScale & scale, double value)
 /** Tries the residual layer in the bytes the spline's payload leaves, and over the corners with all of
  * the budget; keeps in r and payload whichever of the three decodes closest to the input. */
 void
-ChooseLayers(const EncoderInput & input, std::size_t fileBytes, std::size_t headerBytes, double minimum, double maximum,
+ChooseLayers(const EncoderInput & input, std::size_t fileBytes, std::size_t /* headerBytes */, double minimum, double maximum,
              EncoderResult & r, std::vector<uint8_t> & payload)
 {
   const PixelType type = input.header.pixelType;
   const double    step = ResidualStep(r.peak, IsInteger(type));
   const double    q0 = r.header.quantizationOrigin, q = r.quantizationStep;
-  double          bestError = DecodedSquaredError(r.approximation, type, input.voxels);
-  // Nothing decodes closer than exactly (a constant volume, whose step and peak are 0 as well).
-  if (!(bestError > 0.0) || !(step > 0.0))
+  if (!(step > 0.0))
     return;
   // Below this many bytes a codestream is mostly its own headers.
   constexpr std::size_t minimumCodestream = 256;
-  auto                  room = [&](std::size_t payloadBytes) {
-    const std::size_t used = headerBytes + payloadBytes + ResidualLayerFieldBytes;
+  // The bytes a layer's codestream (as stored) and levels may take in a file with header h and a payload.
+  auto room = [&](const FileHeader & h, std::size_t payloadBytes) {
+    FileHeader withLayer = h;
+    withLayer.residualStep = step;
+    withLayer.residualLevels = 0;
+    withLayer.residualLayer = { 0 };
+    const std::size_t used = SerializeFile(withLayer, std::vector<uint8_t>(payloadBytes)).size() - 1;
     return fileBytes > used ? fileBytes - used : 0;
   };
-  auto keep = [&](ResidualChoice && c, Approximation && spline, std::vector<uint8_t> && splinePayload, double step) {
+  // The points' spline, rasterized once: its error, and the spline under a layer in the bytes it leaves.
+  const std::size_t pointsRoom = room(r.header, payload.size());
+  ResidualSearch    points(input.voxels, type, r.approximation, step, pointsRoom);
+  double         bestError = points.SplineError();
+  // Nothing decodes closer than exactly (a constant volume, whose step and peak are 0 as well).
+  if (!(bestError > 0.0))
+    return;
+  // OpenJPEG's codestream follows its target within a few bytes, in steps (the passes of its
+  // code-blocks). The first that fits is kept; where it leaves more than 0.3% of the file, the best
+  // candidate tries to fill it (2 more encodes and decodes at most).
+  const std::size_t slack = std::max<std::size_t>(8, 3 * fileBytes / 1000);
+  auto keep = [&](ResidualChoice && c, Approximation && spline, std::vector<uint8_t> && splinePayload, double step,
+                  const FileHeader & h) {
     if (c.codestream.empty() || !(c.squaredError < bestError))
       return;
     bestError = c.squaredError;
+    r.header.constantSpline = h.constantSpline;
+    r.header.scale = h.scale;
+    r.header.quantizationOrigin = h.quantizationOrigin;
     r.quantizationStep = step;
     r.squaredError = c.squaredError;
     r.header.residualStep = c.step;
@@ -282,18 +301,8 @@ ChooseLayers(const EncoderInput & input, std::size_t fileBytes, std::size_t head
     payload = std::move(splinePayload);
   };
   // Measured on the 5 mm CT series at 0.125 bpv, a residual in the 2% the points leave: +0.35 dB.
-  if (room(payload.size()) >= minimumCodestream)
-  {
-    ResidualChoice       c = ChooseResidualLayer(input.voxels,
-                                           type,
-                                           r.approximation,
-                                           step,
-                                           room(payload.size()),
-                                           { { Wavelet::Irreversible97, Arrangement::Mosaic } });
-    Approximation        spline = r.approximation;
-    std::vector<uint8_t> splinePayload = payload;
-    keep(std::move(c), std::move(spline), std::move(splinePayload), q);
-  }
+  if (pointsRoom >= minimumCodestream)
+    points.Try({ Wavelet::Irreversible97, Arrangement::Mosaic });
   // Splits between the two layers measured worse than either alone (ct-avm-4mm at 0.0625 bpv: 39.44 dB
   // with all to the points, 38.83 and 38.34 with a half and a quarter), so the other candidate is all
   // to the residual, where per-slice transform coding wins (thick slices, higher rates).
@@ -304,27 +313,45 @@ ChooseLayers(const EncoderInput & input, std::size_t fileBytes, std::size_t head
   double offset = step;
   while (minimum + 2.0 * offset - step < maximum) // 2 offset - step: the range p bits hold
     offset *= 2.0;
-  const double         cornersStep = offset;
-  Approximation        corners = Corners(input.header.size, r.header.scale, q0 + cornersStep);
-  std::vector<uint8_t> cornersPayload = EncodePayload(corners, q0, cornersStep);
-  if (room(cornersPayload.size()) >= minimumCodestream)
+  const double cornersStep = offset;
+  // The corners are one constant (form bit 0 of the file): no points, no payload, no Delaunay scale.
+  FileHeader constant = r.header;
+  constant.constantSpline = true;
+  constant.scale = { { 1, 1, 1 } };
+  constant.quantizationOrigin = q0 + cornersStep;
+  const std::size_t               cornersRoom = room(constant, 0);
+  Approximation                   corners = Corners(input.header.size, constant.scale, constant.quantizationOrigin);
+  std::unique_ptr<ResidualSearch> search;
+  if (cornersRoom >= minimumCodestream)
   {
     // The codings in the order that spares trials. Over the dev volumes at 0.03125 and 0.125 bpv (20
     // runs), 9/7 beat 5/3 every time and one component per slice beat the mosaic once, by 0.05 dB;
     // the inter-slice wavelet won wherever slices are alike (avg152t1 at 0.125 bpv: 35.3 dB with 4
     // levels, 30.0 with the points, 26.2 without it; the 5 mm CT series at 0.03125: 33.7 dB with 2
     // levels, 31.5 before) and lost on ct-avm-4mm (1 level: -1.2 dB), where components come next.
-    ResidualSearch search(input.voxels, type, corners, step, room(cornersPayload.size()));
-    const int32_t  most = InterSliceLevels(input.header.size.z);
-    const double   flat = search.Try({ Wavelet::Irreversible97, Arrangement::Mosaic, 0 });
-    const double twoLevels = most > 0 ? search.Try({ Wavelet::Irreversible97, Arrangement::Mosaic, std::min(2, most) })
-                                      : std::numeric_limits<double>::infinity();
+    search = std::make_unique<ResidualSearch>(input.voxels, type, corners, step, cornersRoom);
+    const int32_t most = InterSliceLevels(input.header.size.z);
+    const double  flat = search->Try({ Wavelet::Irreversible97, Arrangement::Mosaic, 0 });
+    const double  twoLevels = most > 0
+                                ? search->Try({ Wavelet::Irreversible97, Arrangement::Mosaic, std::min(2, most) })
+                                : std::numeric_limits<double>::infinity();
     if (twoLevels < flat && most > 2)
-      search.Try({ Wavelet::Irreversible97, Arrangement::Mosaic, std::min(4, most) });
+      search->Try({ Wavelet::Irreversible97, Arrangement::Mosaic, std::min(4, most) });
     else if (!(twoLevels < flat))
-      search.Try({ Wavelet::Irreversible97, Arrangement::Components, 0 });
-    keep(std::move(search).Best(), std::move(corners), std::move(cornersPayload), cornersStep);
+      search->Try({ Wavelet::Irreversible97, Arrangement::Components, 0 });
   }
+  // The candidate that decodes closest fills its budget.
+  ResidualSearch & leader = search && search->BestError() < points.BestError() ? *search : points;
+  if (leader.BestError() < bestError && leader.Unused() > slack)
+    leader.Fill(slack, 2);
+  {
+    Approximation        spline = r.approximation;
+    std::vector<uint8_t> splinePayload = payload;
+    const FileHeader     h = r.header;
+    keep(std::move(points).Best(), std::move(spline), std::move(splinePayload), q, h);
+  }
+  if (search)
+    keep(std::move(*search).Best(), std::move(corners), {}, cornersStep, constant);
 }
 
 /** Approximate() and, with `coded`, the payload as rate control measured it (or coded once here). */
