@@ -188,6 +188,7 @@ private:
   ResidualCoding       bestCoding{ Wavelet::Irreversible97, Arrangement::Mosaic, 0 };
   double               bestTarget{ 0.0 }; // OpenJPEG's target that gave the best codestream
   std::size_t          bestStored{ 0 };   // the bytes it takes in a file (StoredLayerBytes())
+  double               backOff{ 0.0 };    // below the budget the last coding's target had to be, as a fraction
 };
 
 /** Codes the spline's residual against `voxels` (the original, laid out as the grid) with each of

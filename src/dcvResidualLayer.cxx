@@ -372,10 +372,13 @@ Taken(const std::vector<uint8_t> & codestream, const GridSize * grid)
  * `maximumBytes` plus `saving` down; `target` is the one that gave it. Empty when none fits. */
 std::vector<uint8_t>
 EncodeWithin(const LayerImage & image, std::size_t maximumBytes, Wavelet wavelet, double & target,
-             const GridSize * grid = nullptr, std::size_t saving = 0)
+             const GridSize * grid = nullptr, std::size_t saving = 0, double * backOff = nullptr)
 {
-  // OpenJPEG's rate allocation lands within a fraction of a percent of its target.
-  target = double(maximumBytes + saving);
+  // OpenJPEG's rate allocation lands within a fraction of a percent of its target. `backOff` carries
+  // the fraction the last coding of the same image had to come down by, so that the next one starts
+  // there and spares the encode that overshoots.
+  const double aim = double(maximumBytes + saving);
+  target = backOff ? aim * (1.0 - *backOff) : aim;
   for (int attempt = 0; attempt < 4 && target >= 16.0; ++attempt)
   {
     std::vector<uint8_t> codestream = EncodeAt(image, target, wavelet);
@@ -383,7 +386,11 @@ EncodeWithin(const LayerImage & image, std::size_t maximumBytes, Wavelet wavelet
       return {};
     const std::size_t taken = Taken(codestream, grid);
     if (taken <= maximumBytes)
+    {
+      if (backOff)
+        *backOff = std::max(0.0, 1.0 - target / aim);
       return codestream;
+    }
     // Its size follows the target within a few bytes, now and then over it: back by the excess and 0.1%.
     target -= double(taken - maximumBytes) + 0.001 * double(maximumBytes) + 1.0;
   }
@@ -837,7 +844,7 @@ ResidualSearch::Try(const ResidualCoding & coding)
     return std::numeric_limits<double>::infinity();
   double               target = 0.0;
   std::vector<uint8_t> codestream =
-    EncodeWithin(image, Limit(coding), coding.wavelet, target, &grid, CompactLayerSaving(grid, coding.arrangement));
+    EncodeWithin(image, Limit(coding), coding.wavelet, target, &grid, CompactLayerSaving(grid, coding.arrangement), &backOff);
   if (codestream.empty())
     return std::numeric_limits<double>::infinity();
   return Measure(std::move(codestream), coding, target);
