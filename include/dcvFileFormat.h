@@ -137,7 +137,10 @@ struct FileHeader
    * JPEG 2000 codestream. */
   double               residualStep{ 0.0 };
   int32_t              residualLevels{ 0 }; // of its inter-slice wavelet (dcvInterSliceWavelet.h), 0: none
-  std::vector<uint8_t> residualLayer;
+  std::vector<uint8_t> residualLayer;       // the whole codestream (a file may store it compact)
+  /** The spline is the constant quantizationOrigin (the 8 corners, all at that value) under a residual
+   * layer: no point is coded (form bit 0); the payload is empty, numberOfPoints 8. */
+  bool constantSpline{ false };
 };
 
 /** The bytes of a whole file. */

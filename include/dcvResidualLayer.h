@@ -23,6 +23,7 @@
 #include "dcvFileFormat.h"
 
 #include <cstdint>
+#include <limits>
 #include <string>
 #include <vector>
 
@@ -73,6 +74,27 @@ DelaunayCompression_EXPORT std::vector<int32_t>
 DecodeResidualLayer(const std::vector<uint8_t> & codestream, const GridSize & grid, const std::string & name,
                     int32_t levels = 0);
 
+/** Bytes of the fields a compact layer stores instead of its codestream's SOC, SIZ, COD, SOT, SOD and EOC. */
+constexpr std::size_t CompactLayerFieldBytes = 4;
+
+/** The compact form of a residual layer's codestream (docs/format.md, "Compact residual layer"): its
+ * fields, its QCD marker segment and its tile's data, without the markers a decoder rebuilds from the
+ * fields and the grid. False (and `stored` empty) unless ExpandLayer() gives exactly `codestream` back. */
+DelaunayCompression_EXPORT bool
+CompactLayer(const std::vector<uint8_t> & codestream, const GridSize & grid, std::vector<uint8_t> & stored);
+
+/** The codestream of a compact layer; throws FormatError starting with `name` when its fields are not valid. */
+DelaunayCompression_EXPORT std::vector<uint8_t>
+ExpandLayer(const std::vector<uint8_t> & stored, const GridSize & grid, const std::string & name);
+
+/** The bytes a residual layer's codestream takes in a file: compact when it can be, else whole. */
+DelaunayCompression_EXPORT std::size_t
+StoredLayerBytes(const std::vector<uint8_t> & codestream, const GridSize & grid);
+
+/** The bytes the compact form of an arrangement's codestream saves (when OpenJPEG writes it as expected). */
+DelaunayCompression_EXPORT std::size_t
+CompactLayerSaving(const GridSize & grid, Arrangement arrangement);
+
 /** Bytes a residual layer adds to a file besides its codestream (its step and length). */
 constexpr std::size_t ResidualLayerFieldBytes = 12;
 
@@ -103,18 +125,43 @@ struct ResidualCoding
 };
 
 /** Codes the spline's residual against `voxels` (the original, laid out as the grid) in at most
- * `maximumBytes` bytes (the codestream and, with an inter-slice wavelet, its levels), one coding at a time, so that the
+ * `maximumBytes` bytes (the codestream as stored, StoredLayerBytes(), and, with an inter-slice wavelet, its levels), one coding at a time, so that the
  * caller chooses the next coding from the errors so far; keeps the coding that decodes closest, decoded as a decoder
- * will. `voxels` must outlive it. */
+ * will. The spline is rasterized once (a constant one is filled), on the encoder's threads; the residual samples are
+ * computed at the first Try(). `voxels` must outlive it. */
 class DelaunayCompression_EXPORT ResidualSearch
 {
 public:
   ResidualSearch(const float * voxels, PixelType type, const Approximation & spline, double step,
                  std::size_t maximumBytes);
-  /** Codes and decodes with `coding`; the squared error of the volume it decodes to (infinity when no
-   * codestream fits). */
+  /** The squared error of the spline alone (without a layer). */
+  double
+  SplineError() const
+  {
+    return splineError;
+  }
+  /** Codes and decodes with `coding`: the first codestream that fits, from a target of the whole budget
+   * down; the squared error of the volume it decodes to (infinity when no codestream fits). */
   double
   Try(const ResidualCoding & coding);
+  /** Fills the budget with the best coding so far: OpenJPEG lands up to 0.5% under its target, so while
+   * more than `slack` bytes are left, up to `attempts` more targets between the largest that fit and the
+   * smallest that did not; each codestream that fits is decoded and kept if it decodes closer. Returns
+   * the encodes it ran. */
+  std::size_t
+  Fill(std::size_t slack, int attempts = 3);
+  /** Bytes of the budget the best codestream leaves (0 with none). */
+  std::size_t
+  Unused() const
+  {
+    return best.codestream.empty() ? 0 : Limit(bestCoding) - bestStored;
+  }
+  /** The squared error of the best coding so far (infinity with none). */
+  double
+  BestError() const
+  {
+    return best.codestream.empty() ? std::numeric_limits<double>::infinity() : best.squaredError;
+  }
   /** The best coding tried (no codestream when none fits). */
   ResidualChoice
   Best() &&
@@ -123,13 +170,25 @@ public:
   }
 
 private:
+  void
+  PrepareSamples();
+  double
+  Measure(std::vector<uint8_t> && codestream, const ResidualCoding & coding, double target);
+  std::size_t
+  Limit(const ResidualCoding & coding) const;
+
   const float *        voxels;
   PixelType            type;
   GridSize             grid;
   std::size_t          maximumBytes;
   std::vector<uint8_t> splineVoxels; // the spline's voxels, of the pixel type
-  std::vector<int32_t> samples;      // the residual in steps
+  double               splineError{ 0.0 };
+  std::vector<int32_t> samples; // the residual in steps
   ResidualChoice       best;
+  ResidualCoding       bestCoding{ Wavelet::Irreversible97, Arrangement::Mosaic, 0 };
+  double               bestTarget{ 0.0 }; // OpenJPEG's target that gave the best codestream
+  std::size_t          bestStored{ 0 };   // the bytes it takes in a file (StoredLayerBytes())
+  double               backOff{ 0.0 };    // below the budget the last coding's target had to be, as a fraction
 };
 
 /** Codes the spline's residual against `voxels` (the original, laid out as the grid) with each of

@@ -69,6 +69,10 @@ FLAG_RESIDUAL = 8
 FLAG_DEFLATED = 16
 FLAG_INTER_SLICE = 32
 FLAG_AXIS_DIRECTION = 64
+FLAG_FORM = 128
+FORM_CONSTANT = 1  # no points: the spline is the constant q0
+FORM_UNIT_STEP = 2  # the residual step is 1, not stored
+FORM_COMPACT = 4  # the residual layer's codestream is stored compact
 # Section "Header", direction code: row r is +-1 at column AXIS_PERMUTATIONS[code & 7][r].
 AXIS_PERMUTATIONS = ((0, 1, 2), (0, 2, 1), (1, 0, 2), (1, 2, 0), (2, 0, 1), (2, 1, 0))
 # Section "Inter-slice wavelet": band weights in 1/4096 (low band after l levels, high band of level k).
@@ -98,6 +102,61 @@ class _Fields:
         return self.end - self.position
 
 
+# Section "Compact residual layer": the 9/7 steps of OpenJPEG's QCD, for its level index 0 (finest) to 5:
+# (p, mantissa) of LL, of HL and LH, of HH; SPqcd = ((precision - p) << 11) | mantissa.
+QCD_STEPS = [[(0, 0), (-2, 2003), (-2, 1890)], [(-1, 36), (-2, 5), (-2, 71)], [(-3, 1874), (-4, 1872), (-4, 1896)],
+             [(-4, 1848), (-5, 1792), (-5, 1760)], [(-5, 1824), (-6, 1776), (-6, 1728)], [(-6, 1824), None, None]]
+
+
+def implicit_qcd(precision, levels, reversible):
+    bands = 3 * levels + 1
+    out = struct.pack(">HHB", 0xFF5C, 3 + bands * (1 if reversible else 2), 0x40 if reversible else 0x42)
+    for b in range(bands):
+        resolution = 0 if b == 0 else (b - 1) // 3 + 1
+        orientation = 0 if b == 0 else (b - 1) % 3 + 1  # LL, HL, LH, HH
+        kind = 0 if orientation == 0 else 2 if orientation == 3 else 1
+        if reversible:
+            out += bytes([(precision + (0, 1, 2)[kind]) << 3])
+        else:
+            p, mantissa = QCD_STEPS[levels - resolution][kind]
+            out += struct.pack(">H", ((precision - p) << 11) | mantissa)
+    return out
+
+
+def expand_layer(stored, size):
+    """Section "Compact residual layer": the JPEG 2000 codestream a compact layer stands for."""
+    sx, sy, sz = size
+    damaged = DamagedFile("damaged residual layer (invalid compact fields)")
+    if len(stored) < 4:
+        raise damaged
+    columns, packed, levels = struct.unpack_from(">HBB", stored, 0)
+    precision, implicit, reversible = (packed & 0x3F) + 1, packed & 0x40, packed >> 7
+    if precision > 38 or levels > 32 or columns > sz or (columns == 0 and sz > 16384):
+        raise damaged
+    if implicit and (levels > 5 or precision > (29 if reversible else 25)):
+        raise damaged
+    if columns == 0:
+        components, width, height = sz, sx, sy
+    else:
+        components, width, height = 1, columns * sx, -(-sz // columns) * sy
+    if width > 0xFFFFFFFF or height > 0xFFFFFFFF:
+        raise damaged
+    if implicit:
+        qcd, data = implicit_qcd(precision, levels, reversible), stored[4:]
+    else:
+        if len(stored) < 8:
+            raise damaged
+        (marker, lqcd) = struct.unpack_from(">HH", stored, 4)
+        if marker != 0xFF5C or lqcd < 3 or 4 + 2 + lqcd > len(stored):
+            raise damaged
+        qcd, data = stored[4:6 + lqcd], stored[6 + lqcd:]
+    siz = struct.pack(">HHHIIIIIIIIH", 0xFF51, 38 + 3 * components, 0, width, height, 0, 0, width, height, 0, 0,
+                      components) + bytes([0x80 | (precision - 1), 1, 1]) * components
+    cod = struct.pack(">HHBBHBBBBBB", 0xFF52, 12, 0, 0, 1, 0, levels, 4, 4, 0, reversible)
+    sot = struct.pack(">HHHIBB", 0xFF90, 10, 0, 14 + len(data), 0, 1)
+    return b"\xff\x4f" + siz + cod + qcd + sot + b"\xff\x93" + data + b"\xff\xd9"
+
+
 def parse_container(data):
     """Checks, in the document's order, magic, version, CRC-32, then every field's range; returns a dict."""
     if len(data) < 4 or data[:4] != MAGIC:
@@ -118,11 +177,10 @@ def parse_container(data):
     pixel_type, flags, mode = f.unpack("3B", "header")
     if pixel_type not in PIXEL_TYPES:
         raise DamagedFile("unknown pixel type code %d" % pixel_type)
-    if flags & ~(FLAG_DIRECTION | FLAG_METADATA | FLAG_SCALE | FLAG_RESIDUAL | FLAG_DEFLATED | FLAG_INTER_SLICE |
-                 FLAG_AXIS_DIRECTION) or \
-            (flags & FLAG_DEFLATED and not flags & FLAG_METADATA) or \
+    if (flags & FLAG_DEFLATED and not flags & FLAG_METADATA) or \
             (flags & FLAG_INTER_SLICE and not flags & FLAG_RESIDUAL) or \
-            (flags & FLAG_AXIS_DIRECTION and not flags & FLAG_DIRECTION):
+            (flags & FLAG_AXIS_DIRECTION and not flags & FLAG_DIRECTION) or \
+            (flags & FLAG_FORM and not flags & FLAG_RESIDUAL):
         raise DamagedFile("unknown header flags %d" % flags)
     size = f.unpack("3H", "header")
     if min(size) < 2:
@@ -144,23 +202,34 @@ def parse_container(data):
         raise DamagedFile("invalid Delaunay scale")
     if not all(math.isfinite(s) and s > 0.0 for s in spacing):
         raise DamagedFile("invalid voxel spacing")
-    q0, q = f.unpack("2d", "header")
-    if not (math.isfinite(q0) and math.isfinite(q) and q > 0.0):
-        raise DamagedFile("invalid value quantization")
-    voxels = size[0] * size[1] * size[2]
-    n, length = f.unpack("2I", "header")
-    if not 8 <= n <= voxels:
-        raise DamagedFile("absurd point count %d for %d voxels" % (n, voxels))
-    if length > f.left():
-        raise DamagedFile("truncated (the payload is %d bytes, %d remain)" % (length, f.left()))
-    if n > 11728 * length:  # every value costs at least 6.825e-4 bits (docs/format.md, "Resource limits")
-        raise DamagedFile("damaged (%d points cannot be coded in %d payload bytes, at most %d)"
-                          % (n, length, 11728 * length))
-    payload = f.take(length, "payload")
+    form = 0
+    if flags & FLAG_FORM:
+        (form,) = f.unpack("B", "header")
+        if form & ~(FORM_CONSTANT | FORM_UNIT_STEP | FORM_COMPACT):
+            raise DamagedFile("unknown form bits %d" % form)
+    if form & FORM_CONSTANT:
+        (q0,) = f.unpack("d", "header")
+        if not math.isfinite(q0):
+            raise DamagedFile("invalid value quantization")
+        q, n, payload = 1.0, 8, b""
+    else:
+        q0, q = f.unpack("2d", "header")
+        if not (math.isfinite(q0) and math.isfinite(q) and q > 0.0):
+            raise DamagedFile("invalid value quantization")
+        voxels = size[0] * size[1] * size[2]
+        n, length = f.unpack("2I", "header")
+        if not 8 <= n <= voxels:
+            raise DamagedFile("absurd point count %d for %d voxels" % (n, voxels))
+        if length > f.left():
+            raise DamagedFile("truncated (the payload is %d bytes, %d remain)" % (length, f.left()))
+        if n > 11728 * length:  # every value costs at least 6.825e-4 bits (docs/format.md, "Resource limits")
+            raise DamagedFile("damaged (%d points cannot be coded in %d payload bytes, at most %d)"
+                              % (n, length, 11728 * length))
+        payload = f.take(length, "payload")
 
     residual_step, residual_levels, residual_layer = 0.0, 0, b""
     if flags & FLAG_RESIDUAL:
-        (residual_step,) = f.unpack("d", "residual layer")
+        (residual_step,) = (1.0,) if form & FORM_UNIT_STEP else f.unpack("d", "residual layer")
         if not (math.isfinite(residual_step) and residual_step > 0.0):
             raise DamagedFile("invalid residual step")
         if flags & FLAG_INTER_SLICE:
@@ -173,6 +242,8 @@ def parse_container(data):
         if residual_length == 0 or residual_length > f.left():
             raise DamagedFile("truncated (the residual layer is %d bytes, %d remain)" % (residual_length, f.left()))
         residual_layer = f.take(residual_length, "residual layer")
+        if form & FORM_COMPACT:
+            residual_layer = expand_layer(residual_layer, size)
 
     metadata = []
     if flags & FLAG_METADATA:
@@ -209,7 +280,7 @@ def parse_container(data):
         raise DamagedFile("%d unexpected bytes before the checksum" % f.left())
 
     return dict(version=VERSION, pixel_type=pixel_type, flags=flags, mode=mode, size=size, spacing=spacing,
-                origin=origin, direction=direction, scale=scale, q0=q0, q=q, n=n, payload=payload, metadata=metadata,
+                origin=origin, direction=direction, scale=scale, q0=q0, q=q, n=n, payload=payload, metadata=metadata, form=form,
                 residual_step=residual_step, residual_levels=residual_levels, residual_layer=residual_layer)
 
 
@@ -610,6 +681,7 @@ def print_header(h):
     print("points", h["n"])
     print("payload_bytes", len(h["payload"]))
     if h["flags"] & FLAG_RESIDUAL:
+        print("form", h["form"])
         print("residual_step", repr(h["residual_step"]))
         print("residual_levels", h["residual_levels"])
         print("residual_bytes", len(h["residual_layer"]))
@@ -631,9 +703,13 @@ def main():
         return 2
     try:
         h = parse_container(data)
-        d = ArithmeticDecoder(h["payload"])
-        points = decode_positions(d, h["size"], h["n"])
-        check_positions(d, h["size"], points)
+        if h["form"] & FORM_CONSTANT:  # the 8 corners, all at q0 (in position order: z, then y, then x)
+            sx, sy, sz = h["size"]
+            points = [(x, y, z) for z in (0, sz - 1) for y in (0, sy - 1) for x in (0, sx - 1)]
+        else:
+            d = ArithmeticDecoder(h["payload"])
+            points = decode_positions(d, h["size"], h["n"])
+            check_positions(d, h["size"], points)
         values = None
         if args.neighbours:
             try:
@@ -641,7 +717,7 @@ def main():
             except (OSError, ValueError) as e:
                 print("%s: %s" % (args.neighbours, e.strerror if isinstance(e, OSError) else e), file=sys.stderr)
                 return 2
-            values = decode_values(d, neighbours, h["q0"], h["q"])
+            values = [h["q0"]] * 8 if h["form"] & FORM_CONSTANT else decode_values(d, neighbours, h["q0"], h["q"])
         residual = decode_residual_layer(h) if h["flags"] & FLAG_RESIDUAL else None
     except DamagedFile as e:
         print("%s: %s" % (args.file, e), file=sys.stderr)

@@ -225,6 +225,20 @@ DecodeMesh(const CompressedFile & file, const DecodeLimits & limits)
 {
   const FileHeader & h = file.header;
   CheckDecodingMemory(h, file.name, DecodeOutput::Mesh, limits);
+  if (h.constantSpline)
+  {
+    // No point is coded: the spline is q0 everywhere, the 8 corners at that value.
+    Approximation a;
+    a.grid = h.size;
+    a.scale = h.scale;
+    for (int32_t z : { 0, h.size.z - 1 })
+      for (int32_t y : { 0, h.size.y - 1 })
+        for (int32_t x : { 0, h.size.x - 1 })
+          a.points.push_back({ x, y, z });
+    a.values.assign(8, h.quantizationOrigin);
+    a.tetrahedra = Tetrahedralize(a.points, a.scale);
+    return a;
+  }
   return DecodePayload(
     file.payload, h.size, h.numberOfPoints, h.quantizationOrigin, h.quantizationStep, file.name, h.scale);
 }

@@ -28,6 +28,7 @@
 #include <cmath>
 #include <cstdio>
 #include <limits>
+#include <memory>
 #include <stdexcept>
 #include <string>
 #include <tuple>
@@ -250,34 +251,46 @@ Corners(const GridSize & grid, const GridScale & scale, double value)
   return a;
 }
 
-/** The other way to spend a budget: the 8 corners under a residual layer that takes all of it. */
-struct CornersCandidate
-{
-  ResidualChoice       choice;
-  Approximation        spline;
-  std::vector<uint8_t> payload;
-  double               step{ 0.0 };
-};
-
 /** Below this many bytes a codestream is mostly its own headers. */
 constexpr std::size_t MinimumCodestream = 256;
 
+/** The bytes a layer's codestream (as stored) and levels may take in a file of `fileBytes` with header
+ * h and a payload. */
 std::size_t
-LayerRoom(std::size_t fileBytes, std::size_t headerBytes, std::size_t payloadBytes)
+LayerRoom(const FileHeader & h, double step, std::size_t fileBytes, std::size_t payloadBytes)
 {
-  const std::size_t used = headerBytes + payloadBytes + ResidualLayerFieldBytes;
+  FileHeader withLayer = h;
+  withLayer.residualStep = step;
+  withLayer.residualLevels = 0;
+  withLayer.residualLayer = { 0 };
+  const std::size_t used = SerializeFile(withLayer, std::vector<uint8_t>(payloadBytes)).size() - 1;
   return fileBytes > used ? fileBytes - used : 0;
 }
 
-/** Codes the residual layer over the corners; no codestream when the budget leaves no room for one. Done
- * before the points, whose rate control stops as soon as they cannot reach its error. */
+/** The other way to spend a budget: the 8 corners, one constant, under a residual layer that takes all
+ * of it. */
+struct CornersCandidate
+{
+  FileHeader                      header; // a constant spline (form bit 0): no points, no payload
+  Approximation                   spline;
+  double                          step{ 0.0 };
+  std::unique_ptr<ResidualSearch> search; // none: no room for a codestream, or a constant volume
+
+  double
+  Error() const
+  {
+    return search ? search->BestError() : std::numeric_limits<double>::infinity();
+  }
+};
+
+/** Codes the residual layer over the corners. Done before the points, whose rate control stops as soon
+ * as they cannot reach its error. */
 CornersCandidate
-TryCorners(const EncoderInput & input, std::size_t fileBytes, std::size_t headerBytes, double minimum, double maximum,
-           const GridScale & scale, double peak)
+TryCorners(const EncoderInput & input, const FileHeader & header, std::size_t fileBytes, double minimum,
+           double maximum, double peak)
 {
   const PixelType  type = input.header.pixelType;
   const double     step = ResidualStep(peak, IsInteger(type));
-  const double     q0 = minimum;
   CornersCandidate candidate;
   if (!(step > 0.0) || !(maximum > minimum))
     return candidate; // a constant volume: the points are exact
@@ -292,9 +305,12 @@ TryCorners(const EncoderInput & input, std::size_t fileBytes, std::size_t header
   while (minimum + 2.0 * offset - step < maximum) // 2 offset - step: the range p bits hold
     offset *= 2.0;
   candidate.step = offset;
-  candidate.spline = Corners(input.header.size, scale, q0 + candidate.step);
-  candidate.payload = EncodePayload(candidate.spline, q0, candidate.step);
-  const std::size_t room = LayerRoom(fileBytes, headerBytes, candidate.payload.size());
+  candidate.header = header;
+  candidate.header.constantSpline = true;
+  candidate.header.scale = { { 1, 1, 1 } };
+  candidate.header.quantizationOrigin = header.quantizationOrigin + candidate.step;
+  candidate.spline = Corners(input.header.size, candidate.header.scale, candidate.header.quantizationOrigin);
+  const std::size_t room = LayerRoom(candidate.header, step, fileBytes, 0);
   if (room < MinimumCodestream)
     return candidate;
   // The codings in the order that spares trials. Over the dev volumes at 0.03125 and 0.125 bpv (20
@@ -302,37 +318,58 @@ TryCorners(const EncoderInput & input, std::size_t fileBytes, std::size_t header
   // the inter-slice wavelet won wherever slices are alike (avg152t1 at 0.125 bpv: 35.3 dB with 4
   // levels, 30.0 with the points, 26.2 without it; the 5 mm CT series at 0.03125: 33.7 dB with 2
   // levels, 31.5 before) and lost on ct-avm-4mm (1 level: -1.2 dB), where components come next.
-  ResidualSearch search(input.voxels, type, candidate.spline, step, room);
-  const int32_t  most = InterSliceLevels(input.header.size.z);
-  const double   flat = search.Try({ Wavelet::Irreversible97, Arrangement::Mosaic, 0 });
-  const double   twoLevels = most > 0 ? search.Try({ Wavelet::Irreversible97, Arrangement::Mosaic, std::min(2, most) })
-                                      : std::numeric_limits<double>::infinity();
+  candidate.search = std::make_unique<ResidualSearch>(input.voxels, type, candidate.spline, step, room);
+  ResidualSearch & search = *candidate.search;
+  const int32_t    most = InterSliceLevels(input.header.size.z);
+  const double     flat = search.Try({ Wavelet::Irreversible97, Arrangement::Mosaic, 0 });
+  const double     twoLevels = most > 0 ? search.Try({ Wavelet::Irreversible97, Arrangement::Mosaic, std::min(2, most) })
+                                        : std::numeric_limits<double>::infinity();
   if (twoLevels < flat && most > 2)
     search.Try({ Wavelet::Irreversible97, Arrangement::Mosaic, std::min(4, most) });
   else if (!(twoLevels < flat))
     search.Try({ Wavelet::Irreversible97, Arrangement::Components, 0 });
-  candidate.choice = std::move(search).Best();
   return candidate;
 }
 
 /** Tries the residual layer in the bytes the spline's payload leaves (unless the points were abandoned),
- * and takes the corners' candidate; keeps in r and payload whichever decodes closest to the input. */
+ * fills the budget with the best candidate, and keeps in r and payload whichever of the points, the
+ * points with a layer and the corners' layer decodes closest to the input. */
 void
-ChooseLayers(const EncoderInput & input, std::size_t fileBytes, std::size_t headerBytes, bool pointsAbandoned,
-             CornersCandidate && corners, EncoderResult & r, std::vector<uint8_t> & payload)
+ChooseLayers(const EncoderInput & input, std::size_t fileBytes, bool pointsAbandoned, CornersCandidate && corners,
+             EncoderResult & r, std::vector<uint8_t> & payload)
 {
   const PixelType type = input.header.pixelType;
   const double    step = ResidualStep(r.peak, IsInteger(type));
   const double    q = r.quantizationStep;
-  double          bestError = pointsAbandoned ? std::numeric_limits<double>::infinity()
-                                              : DecodedSquaredError(r.approximation, type, input.voxels);
-  // Nothing decodes closer than exactly (a constant volume, whose step and peak are 0 as well).
-  if (!(bestError > 0.0) || !(step > 0.0))
+  if (!(step > 0.0))
     return;
-  auto keep = [&](ResidualChoice && c, Approximation && spline, std::vector<uint8_t> && splinePayload, double step) {
+  // The points' spline, rasterized once: its error, and the spline under a layer in the bytes it leaves.
+  std::unique_ptr<ResidualSearch> points;
+  double                          bestError = std::numeric_limits<double>::infinity();
+  if (!pointsAbandoned)
+  {
+    const std::size_t pointsRoom = LayerRoom(r.header, step, fileBytes, payload.size());
+    points = std::make_unique<ResidualSearch>(input.voxels, type, r.approximation, step, pointsRoom);
+    bestError = points->SplineError();
+    // Nothing decodes closer than exactly (a constant volume, whose step and peak are 0 as well).
+    if (!(bestError > 0.0))
+      return;
+    // Measured on the 5 mm CT series at 0.125 bpv, a residual in the 2% the points leave: +0.35 dB.
+    if (pointsRoom >= MinimumCodestream)
+      points->Try({ Wavelet::Irreversible97, Arrangement::Mosaic });
+  }
+  // OpenJPEG's codestream follows its target within a few bytes, in steps (the passes of its
+  // code-blocks). The first that fits is kept; where it leaves more than 0.3% of the file, the best
+  // candidate tries to fill it (2 more encodes and decodes at most).
+  const std::size_t slack = std::max<std::size_t>(8, 3 * fileBytes / 1000);
+  auto keep = [&](ResidualChoice && c, Approximation && spline, std::vector<uint8_t> && splinePayload, double step,
+                  const FileHeader & h) {
     if (c.codestream.empty() || !(c.squaredError < bestError))
       return;
     bestError = c.squaredError;
+    r.header.constantSpline = h.constantSpline;
+    r.header.scale = h.scale;
+    r.header.quantizationOrigin = h.quantizationOrigin;
     r.quantizationStep = step;
     r.squaredError = c.squaredError;
     r.header.residualStep = c.step;
@@ -342,20 +379,19 @@ ChooseLayers(const EncoderInput & input, std::size_t fileBytes, std::size_t head
     r.approximation.residual = { c.step, std::move(c.samples) };
     payload = std::move(splinePayload);
   };
-  // Measured on the 5 mm CT series at 0.125 bpv, a residual in the 2% the points leave: +0.35 dB.
-  if (!pointsAbandoned && LayerRoom(fileBytes, headerBytes, payload.size()) >= MinimumCodestream)
+  ResidualSearch * leader =
+    corners.search && (!points || corners.search->BestError() < points->BestError()) ? corners.search.get() : points.get();
+  if (leader && leader->BestError() < bestError && leader->Unused() > slack)
+    leader->Fill(slack, 2);
+  if (points)
   {
-    ResidualChoice       c = ChooseResidualLayer(input.voxels,
-                                           type,
-                                           r.approximation,
-                                           step,
-                                           LayerRoom(fileBytes, headerBytes, payload.size()),
-                                           { { Wavelet::Irreversible97, Arrangement::Mosaic } });
     Approximation        spline = r.approximation;
     std::vector<uint8_t> splinePayload = payload;
-    keep(std::move(c), std::move(spline), std::move(splinePayload), q);
+    const FileHeader     h = r.header;
+    keep(std::move(*points).Best(), std::move(spline), std::move(splinePayload), q, h);
   }
-  keep(std::move(corners.choice), std::move(corners.spline), std::move(corners.payload), corners.step);
+  if (corners.search)
+    keep(std::move(*corners.search).Best(), std::move(corners.spline), {}, corners.step, corners.header);
 }
 
 /** Approximate() and, with `coded`, the payload as rate control measured it (or coded once here). */
@@ -418,16 +454,11 @@ Run(const EncoderInput & input, const EncoderOptions & o, bool coded, std::vecto
   std::future<CornersCandidate> cornersLater;
   if (layers)
   {
-    cornersLater = std::async(std::launch::async, [&, threads = CurrentThreads()] {
+    cornersLater = std::async(std::launch::async, [&, header = r.header, threads = CurrentThreads()] {
       return WithThreads(threads, [&] {
         const auto       start = std::chrono::steady_clock::now();
-        CornersCandidate c = TryCorners(input,
-                                        std::size_t(fileBytes),
-                                        std::size_t(headerBytes),
-                                        *range.first,
-                                        *range.second,
-                                        parameters.scale,
-                                        parameters.peak);
+        CornersCandidate c =
+          TryCorners(input, header, std::size_t(fileBytes), *range.first, *range.second, parameters.peak);
         r.timings.residualLayer += std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
         return c;
       });
@@ -447,11 +478,7 @@ Run(const EncoderInput & input, const EncoderOptions & o, bool coded, std::vecto
                                            parameters.quantizationOrigin,
                                            automaticStep ? RateControl::StepMultiples() : std::vector<double>{ 1.0 },
                                            o.progress,
-                                           [&] {
-                                             const CornersCandidate & c = cornersDone();
-                                             return c.choice.codestream.empty() ? std::numeric_limits<double>::infinity()
-                                                                                : c.choice.squaredError;
-                                           });
+                                           [&] { return cornersDone().Error(); });
       r.quantizationStep = b.step;
       r.adjustments = b.adjustments;
       payload = std::move(b.payload);
@@ -499,7 +526,7 @@ Run(const EncoderInput & input, const EncoderOptions & o, bool coded, std::vecto
   {
     cornersDone();
     const auto start = std::chrono::steady_clock::now();
-    ChooseLayers(input, std::size_t(fileBytes), std::size_t(headerBytes), pointsAbandoned, std::move(corners), r, payload);
+    ChooseLayers(input, std::size_t(fileBytes), pointsAbandoned, std::move(corners), r, payload);
     r.timings.residualLayer += std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
   }
   r.header.quantizationStep = r.quantizationStep > 0.0 ? r.quantizationStep : 1.0;

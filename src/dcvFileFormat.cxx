@@ -17,6 +17,7 @@
  *=========================================================================*/
 #include "dcvFileFormat.h"
 #include "dcvInterSliceWavelet.h"
+#include "dcvResidualLayer.h"
 
 #include <zlib.h>
 
@@ -40,6 +41,10 @@ constexpr uint8_t FlagResidual = 8;       // a residual layer follows the payloa
 constexpr uint8_t FlagDeflated = 16;      // the metadata pairs are deflated (zlib)
 constexpr uint8_t FlagInterSlice = 32;    // the residual layer has an inter-slice wavelet (with FlagResidual)
 constexpr uint8_t FlagAxisDirection = 64; // the direction is one byte: a signed axis permutation (with FlagDirection)
+constexpr uint8_t FlagForm = 128;         // a form byte follows the scale (with FlagResidual)
+constexpr uint8_t FormConstant = 1;       // no points: the spline is the constant q0; no q, n, L, payload
+constexpr uint8_t FormUnitStep = 2;       // the residual step is 1 and is not stored
+constexpr uint8_t FormCompact = 4;        // the residual layer is stored compact (dcvResidualLayer.h, CompactLayer)
 
 /** The permutations of the axes a direction code names: row r of the matrix is +-1 at column
  * Permutations[code & 7][r]. */
@@ -277,6 +282,16 @@ SerializeFile(const FileHeader & h, const std::vector<uint8_t> & payload)
       throw std::invalid_argument("a .dcv scale must be 1 to " + std::to_string(MaximumGridScale));
     }
   }
+  if (h.constantSpline && (!residual || !payload.empty()))
+  {
+    throw std::invalid_argument("a .dcv constant spline needs a residual layer and no payload");
+  }
+  // Every residual layer comes with a form byte: the layer's fields as short as they can be.
+  std::vector<uint8_t> compact;
+  const bool           compacted = residual && CompactLayer(h.residualLayer, h.size, compact);
+  const uint8_t        form = uint8_t((h.constantSpline ? FormConstant : 0) | (h.residualStep == 1.0 ? FormUnitStep : 0) |
+                               (compacted ? FormCompact : 0));
+  const std::vector<uint8_t> & layer = compacted ? compact : h.residualLayer;
   w.Bytes(Magic, 4);
   w.U8(FileHeader::Version);
   w.U8(uint8_t(h.pixelType));
@@ -303,7 +318,8 @@ SerializeFile(const FileHeader & h, const std::vector<uint8_t> & payload)
   const int axisDirection = direction ? AxisDirectionCode(h.direction) : -1;
   w.U8(uint8_t((direction ? FlagDirection : 0) | (axisDirection >= 0 ? FlagAxisDirection : 0) |
                (metadata ? FlagMetadata : 0) | (scaled ? FlagScale : 0) | (residual ? FlagResidual : 0) |
-               (deflated.empty() ? 0 : FlagDeflated) | (h.residualLevels > 0 ? FlagInterSlice : 0)));
+               (deflated.empty() ? 0 : FlagDeflated) | (h.residualLevels > 0 ? FlagInterSlice : 0) |
+               (residual ? FlagForm : 0)));
   w.U8(h.mode);
   w.U16(uint16_t(h.size.x));
   w.U16(uint16_t(h.size.y));
@@ -326,18 +342,24 @@ SerializeFile(const FileHeader & h, const std::vector<uint8_t> & payload)
     for (int32_t s : h.scale)
       w.U8(uint8_t(s));
   }
+  if (residual)
+    w.U8(form);
   w.F64(h.quantizationOrigin);
-  w.F64(h.quantizationStep);
-  w.U32(h.numberOfPoints);
-  w.U32(uint32_t(payload.size()));
-  w.Bytes(payload.data(), payload.size());
+  if (!h.constantSpline)
+  {
+    w.F64(h.quantizationStep);
+    w.U32(h.numberOfPoints);
+    w.U32(uint32_t(payload.size()));
+    w.Bytes(payload.data(), payload.size());
+  }
   if (residual)
   {
-    w.F64(h.residualStep);
+    if (!(form & FormUnitStep))
+      w.F64(h.residualStep);
     if (h.residualLevels > 0)
       w.U8(uint8_t(h.residualLevels));
-    w.U32(uint32_t(h.residualLayer.size()));
-    w.Bytes(h.residualLayer.data(), h.residualLayer.size());
+    w.U32(uint32_t(layer.size()));
+    w.Bytes(layer.data(), layer.size());
   }
   if (metadata)
   {
@@ -396,10 +418,8 @@ ParseFile(const std::vector<uint8_t> & bytes, const std::string & name, FileHead
   }
   h.pixelType = PixelType(type);
   const uint8_t flags = r.U8("header");
-  if (flags & ~(FlagDirection | FlagMetadata | FlagScale | FlagResidual | FlagDeflated | FlagInterSlice |
-                FlagAxisDirection) ||
-      ((flags & FlagDeflated) && !(flags & FlagMetadata)) || ((flags & FlagInterSlice) && !(flags & FlagResidual)) ||
-      ((flags & FlagAxisDirection) && !(flags & FlagDirection)))
+  if (((flags & FlagDeflated) && !(flags & FlagMetadata)) || ((flags & FlagInterSlice) && !(flags & FlagResidual)) ||
+      ((flags & FlagAxisDirection) && !(flags & FlagDirection)) || ((flags & FlagForm) && !(flags & FlagResidual)))
   {
     throw FormatError(name + ": unknown header flags " + std::to_string(flags));
   }
@@ -446,7 +466,23 @@ ParseFile(const std::vector<uint8_t> & bytes, const std::string & name, FileHead
     if (!(v > 0.0) || !std::isfinite(v))
       throw FormatError(name + ": invalid voxel spacing");
   }
+  const uint8_t form = (flags & FlagForm) ? r.U8("header") : 0;
+  if (form & ~(FormConstant | FormUnitStep | FormCompact))
+  {
+    throw FormatError(name + ": unknown form bits " + std::to_string(form));
+  }
+  h.constantSpline = (form & FormConstant) != 0;
   h.quantizationOrigin = r.F64("header");
+  if (h.constantSpline)
+  {
+    if (!std::isfinite(h.quantizationOrigin))
+      throw FormatError(name + ": invalid value quantization");
+    h.quantizationStep = 1.0;
+    h.numberOfPoints = 8;
+    payload.clear();
+  }
+  else
+  {
   h.quantizationStep = r.F64("header");
   if (!std::isfinite(h.quantizationOrigin) || !(h.quantizationStep > 0.0) || !std::isfinite(h.quantizationStep))
   {
@@ -472,12 +508,13 @@ ParseFile(const std::vector<uint8_t> & bytes, const std::string & name, FileHead
   }
   payload.assign(bytes.begin() + std::ptrdiff_t(r.Position()), bytes.begin() + std::ptrdiff_t(r.Position() + length));
   r.Skip(length);
+  }
   h.residualStep = 0.0;
   h.residualLevels = 0;
   h.residualLayer.clear();
   if (flags & FlagResidual)
   {
-    h.residualStep = r.F64("residual layer");
+    h.residualStep = (form & FormUnitStep) ? 1.0 : r.F64("residual layer");
     if (!(h.residualStep > 0.0) || !std::isfinite(h.residualStep))
     {
       throw FormatError(name + ": invalid residual step");
@@ -501,6 +538,8 @@ ParseFile(const std::vector<uint8_t> & bytes, const std::string & name, FileHead
     h.residualLayer.assign(bytes.begin() + std::ptrdiff_t(r.Position()),
                            bytes.begin() + std::ptrdiff_t(r.Position() + size));
     r.Skip(size);
+    if (form & FormCompact)
+      h.residualLayer = ExpandLayer(h.residualLayer, h.size, name);
   }
   h.metadata.clear();
   if (flags & FlagMetadata)

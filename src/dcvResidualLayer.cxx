@@ -185,7 +185,7 @@ StripComments(std::vector<uint8_t> & codestream)
  * `planes`; the codestream (empty when OpenJPEG fails). A fresh image each time: OpenJPEG's encoder may
  * take over the image's sample buffers. */
 std::vector<uint8_t>
-EncodeOnce(const std::vector<int32_t> & planes, int components, int64_t width, int64_t height, int precision,
+EncodeOnce(const int32_t * planes, int components, int64_t width, int64_t height, int precision,
            int resolutions, double ratio, Wavelet wavelet)
 {
   opj_image_cmptparm_t component{};
@@ -203,7 +203,7 @@ EncodeOnce(const std::vector<int32_t> & planes, int components, int64_t width, i
   image->y1 = OPJ_UINT32(height);
   const std::size_t plane = std::size_t(width * height);
   for (int c = 0; c < components; ++c)
-    std::copy_n(planes.data() + std::size_t(c) * plane, plane, image->comps[c].data);
+    std::copy_n(planes + std::size_t(c) * plane, plane, image->comps[c].data);
 
   opj_cparameters_t p;
   opj_set_default_encoder_parameters(&p);
@@ -257,9 +257,25 @@ MosaicColumns(const GridSize & grid)
   return best;
 }
 
-std::vector<uint8_t>
-EncodeResidualLayer(const std::vector<int32_t> & input, const GridSize & grid, std::size_t maximumBytes,
-                    Wavelet wavelet, Arrangement arrangement, int32_t levels)
+namespace
+{
+/** A coding's JPEG 2000 image, prepared once and then encoded at as many targets as asked. */
+struct LayerImage
+{
+  std::vector<int32_t>   owned;          // the transformed samples or the mosaic, when not the input itself
+  const int32_t *        data{ nullptr }; // `components` planes of width x height, one after the other
+  int                    components{ 1 };
+  int64_t                width{ 0 }, height{ 0 };
+  int                    precision{ 2 };
+  int                    resolutions{ 1 };
+  double                 raw{ 0.0 }; // bytes of the samples at that precision: what OpenJPEG's ratio refers to
+};
+
+/** Prepares `input` (laid out as the grid) as a JPEG 2000 image; false when it cannot be one (more
+ * slices than MaximumComponents as components, a mosaic too wide). */
+bool
+PrepareImage(const std::vector<int32_t> & input, const GridSize & grid, Arrangement arrangement, int32_t levels,
+             LayerImage & image)
 {
   if (input.size() != grid.NumberOfVoxels())
     throw std::invalid_argument("EncodeResidualLayer: one sample per voxel");
@@ -283,62 +299,114 @@ EncodeResidualLayer(const std::vector<int32_t> & input, const GridSize & grid, s
   }
   // The fewest bits that hold the samples (two's complement): more bit planes measured worse at the
   // same size.
-  int precision = 2;
-  while (lowest < -(1 << (precision - 1)) || highest > (1 << (precision - 1)) - 1)
-    ++precision;
+  image.precision = 2;
+  while (lowest < -(1 << (image.precision - 1)) || highest > (1 << (image.precision - 1)) - 1)
+    ++image.precision;
 
-  int                  components = 1;
-  int64_t              width = grid.x, height = grid.y;
-  std::vector<int32_t> mosaic;
+  image.components = 1;
+  image.width = grid.x;
+  image.height = grid.y;
   if (arrangement == Arrangement::Components)
   {
     if (grid.z > MaximumComponents)
-      return {};
-    components = grid.z; // the grid's layout is already one plane per slice
+      return false;
+    image.components = grid.z; // the grid's layout is already one plane per slice
+    image.owned = std::move(transformed);
+    image.data = levels > 0 ? image.owned.data() : input.data();
   }
   else
   {
     const int32_t cols = MosaicColumns(grid);
     const int32_t rows = (grid.z + cols - 1) / cols;
-    width = int64_t(cols) * grid.x;
-    height = int64_t(rows) * grid.y;
-    if (width > 0x7fffffff || height > 0x7fffffff)
-      return {};
+    image.width = int64_t(cols) * grid.x;
+    image.height = int64_t(rows) * grid.y;
+    if (image.width > 0x7fffffff || image.height > 0x7fffffff)
+      return false;
     // Empty tiles of the last row hold the most frequent sample (air in a CT): no edge against the
     // background of the slices beside them (measured: +0.15 dB on ct-avm-4mm over a fill with 0).
     std::vector<uint32_t> histogram(std::size_t(highest - lowest) + 1, 0);
     for (int32_t s : samples)
       ++histogram[std::size_t(s - lowest)];
     const int32_t fill = int32_t(std::max_element(histogram.begin(), histogram.end()) - histogram.begin()) + lowest;
-    mosaic.assign(std::size_t(width * height), fill);
+    image.owned.assign(std::size_t(image.width * image.height), fill);
     for (int32_t z = 0; z < grid.z; ++z)
     {
       const int64_t x0 = int64_t(z % cols) * grid.x, y0 = int64_t(z / cols) * grid.y;
       for (int32_t y = 0; y < grid.y; ++y)
       {
-        std::copy_n(samples.data() + grid.Offset(0, y, z), grid.x, mosaic.data() + (y0 + y) * width + x0);
+        std::copy_n(
+          samples.data() + grid.Offset(0, y, z), grid.x, image.owned.data() + (y0 + y) * image.width + x0);
       }
     }
+    image.data = image.owned.data();
   }
-  const std::vector<int32_t> & planes = arrangement == Arrangement::Components ? samples : mosaic;
   // Every resolution level needs a sample, as OpenJPEG asks; six levels otherwise.
-  const int resolutions =
-    std::max(1, std::min(6, int(std::floor(std::log2(double(std::max<int64_t>(1, std::min(width, height)))))) + 1));
-  const double raw = double(width) * double(height) * components * precision / 8.0;
-  // OpenJPEG's rate allocation lands within a fraction of a percent under its target; the rare
-  // overshoot is taken back in proportion.
-  double target = double(maximumBytes);
+  image.resolutions = std::max(
+    1, std::min(6, int(std::floor(std::log2(double(std::max<int64_t>(1, std::min(image.width, image.height)))))) + 1));
+  image.raw = double(image.width) * double(image.height) * image.components * image.precision / 8.0;
+  return true;
+}
+
+/** The image coded at `target` bytes (OpenJPEG's rate allocation aims at it; empty when OpenJPEG fails). */
+std::vector<uint8_t>
+EncodeAt(const LayerImage & image, double target, Wavelet wavelet)
+{
+  return EncodeOnce(image.data,
+                    image.components,
+                    image.width,
+                    image.height,
+                    image.precision,
+                    image.resolutions,
+                    target < image.raw ? image.raw / target : 0.0,
+                    wavelet);
+}
+
+/** The bytes a codestream takes: its size, or with `grid` its stored size (compact where it can be). */
+std::size_t
+Taken(const std::vector<uint8_t> & codestream, const GridSize * grid)
+{
+  return grid ? StoredLayerBytes(codestream, *grid) : codestream.size();
+}
+
+/** The first codestream that takes at most `maximumBytes` bytes (Taken() with `grid`), from a target of
+ * `maximumBytes` plus `saving` down; `target` is the one that gave it. Empty when none fits. */
+std::vector<uint8_t>
+EncodeWithin(const LayerImage & image, std::size_t maximumBytes, Wavelet wavelet, double & target,
+             const GridSize * grid = nullptr, std::size_t saving = 0, double * backOff = nullptr)
+{
+  // OpenJPEG's rate allocation lands within a fraction of a percent of its target. `backOff` carries
+  // the fraction the last coding of the same image had to come down by, so that the next one starts
+  // there and spares the encode that overshoots.
+  const double aim = double(maximumBytes + saving);
+  target = backOff ? aim * (1.0 - *backOff) : aim;
   for (int attempt = 0; attempt < 4 && target >= 16.0; ++attempt)
   {
-    std::vector<uint8_t> codestream =
-      EncodeOnce(planes, components, width, height, precision, resolutions, target < raw ? raw / target : 0.0, wavelet);
+    std::vector<uint8_t> codestream = EncodeAt(image, target, wavelet);
     if (codestream.empty())
       return {};
-    if (codestream.size() <= maximumBytes)
+    const std::size_t taken = Taken(codestream, grid);
+    if (taken <= maximumBytes)
+    {
+      if (backOff)
+        *backOff = std::max(0.0, 1.0 - target / aim);
       return codestream;
-    target *= 0.995 * double(maximumBytes) / double(codestream.size());
+    }
+    // Its size follows the target within a few bytes, now and then over it: back by the excess and 0.1%.
+    target -= double(taken - maximumBytes) + 0.001 * double(maximumBytes) + 1.0;
   }
   return {};
+}
+} // namespace
+
+std::vector<uint8_t>
+EncodeResidualLayer(const std::vector<int32_t> & input, const GridSize & grid, std::size_t maximumBytes,
+                    Wavelet wavelet, Arrangement arrangement, int32_t levels)
+{
+  LayerImage image;
+  if (!PrepareImage(input, grid, arrangement, levels, image))
+    return {};
+  double target = 0.0;
+  return EncodeWithin(image, maximumBytes, wavelet, target);
 }
 
 std::vector<int32_t>
@@ -405,12 +473,288 @@ DecodeResidualLayer(const std::vector<uint8_t> & codestream, const GridSize & gr
   return samples;
 }
 
+namespace
+{
+void
+PutU16(std::vector<uint8_t> & b, uint32_t v)
+{
+  b.push_back(uint8_t(v >> 8));
+  b.push_back(uint8_t(v));
+}
+void
+PutU32(std::vector<uint8_t> & b, uint32_t v)
+{
+  PutU16(b, v >> 16);
+  PutU16(b, v & 0xffff);
+}
+uint32_t
+GetU16(const uint8_t * p)
+{
+  return (uint32_t(p[0]) << 8) | p[1];
+}
+uint32_t
+GetU32(const uint8_t * p)
+{
+  return (GetU16(p) << 16) | GetU16(p + 2);
+}
+
+/** The fields of a compact layer (docs/format.md, "Compact residual layer"). */
+struct CompactFields
+{
+  uint32_t columns{ 0 }; // of the mosaic; 0: one component per slice
+  uint32_t precision{ 0 };
+  uint32_t levels{ 0 }; // of the 2D wavelet (resolutions - 1)
+  bool     reversible{ false };
+};
+
+/** The 9/7 step of each band as OpenJPEG 2.5 writes it (docs/format.md, "Compact residual layer"): for
+ * OpenJPEG's level index 0 to 5 (0 the finest), {p, mantissa} of LL, of HL and LH, of HH; the band's SPqcd is
+ * ((precision - p) << 11) | mantissa. Measured from its codestreams at 4 to 16 bits and 1 to 6 resolutions. */
+constexpr int QcdSteps[6][3][2] = { { { 0, 0 }, { -2, 2003 }, { -2, 1890 } },     { { -1, 36 }, { -2, 5 }, { -2, 71 } },
+                                    { { -3, 1874 }, { -4, 1872 }, { -4, 1896 } }, { { -4, 1848 }, { -5, 1792 }, { -5, 1760 } },
+                                    { { -5, 1824 }, { -6, 1776 }, { -6, 1728 } }, { { -6, 1824 }, { 0, 0 }, { 0, 0 } } };
+constexpr uint32_t MaximumImplicitQcdLevels = 5;
+
+/** The QCD marker segment OpenJPEG writes for these fields (levels at most MaximumImplicitQcdLevels). */
+std::vector<uint8_t>
+ImplicitQcd(const CompactFields & f)
+{
+  std::vector<uint8_t> q;
+  const uint32_t       bands = 3 * f.levels + 1;
+  PutU16(q, 0xff5c);
+  PutU16(q, 3 + bands * (f.reversible ? 1 : 2));
+  q.push_back(f.reversible ? 0x40 : 0x42); // 2 guard bits; no quantization or scalar expounded
+  for (uint32_t b = 0; b < bands; ++b)
+  {
+    const uint32_t resolution = b == 0 ? 0 : (b - 1) / 3 + 1;
+    const uint32_t orientation = b == 0 ? 0 : (b - 1) % 3 + 1; // LL, HL, LH, HH
+    if (f.reversible)
+    {
+      const uint32_t gain = orientation == 0 ? 0 : orientation == 3 ? 2 : 1;
+      q.push_back(uint8_t((f.precision + gain) << 3));
+    }
+    else
+    {
+      const int * step = QcdSteps[f.levels - resolution][orientation == 0 ? 0 : orientation == 3 ? 2 : 1];
+      PutU16(q, (uint32_t(int(f.precision) - step[0]) << 11) | uint32_t(step[1]));
+    }
+  }
+  return q;
+}
+
+/** SOC, SIZ and COD as a compact layer's fields give them; empty when the fields are not valid for the grid. */
+std::vector<uint8_t>
+MainHeader(const CompactFields & f, const GridSize & grid)
+{
+  if (f.precision < 1 || f.precision > 38 || f.levels > 32 || (f.columns == 0 && grid.z > MaximumComponents) ||
+      f.columns > uint32_t(grid.z))
+    return {};
+  const uint32_t components = f.columns == 0 ? uint32_t(grid.z) : 1;
+  const uint64_t width = f.columns == 0 ? uint64_t(grid.x) : uint64_t(f.columns) * uint64_t(grid.x);
+  const uint64_t height =
+    f.columns == 0 ? uint64_t(grid.y) : uint64_t((grid.z + f.columns - 1) / f.columns) * uint64_t(grid.y);
+  if (width > 0xffffffffu || height > 0xffffffffu)
+    return {};
+  std::vector<uint8_t> h;
+  PutU16(h, 0xff4f); // SOC
+  PutU16(h, 0xff51); // SIZ
+  PutU16(h, 38 + 3 * components);
+  PutU16(h, 0); // Rsiz
+  for (uint64_t v : { width, height, uint64_t(0), uint64_t(0), width, height, uint64_t(0), uint64_t(0) })
+    PutU32(h, uint32_t(v));
+  PutU16(h, components);
+  for (uint32_t c = 0; c < components; ++c)
+  {
+    h.push_back(uint8_t(0x80 | (f.precision - 1))); // signed
+    h.push_back(1);
+    h.push_back(1);
+  }
+  PutU16(h, 0xff52); // COD
+  PutU16(h, 12);
+  h.push_back(0);   // Scod: default precincts, no SOP, no EPH
+  h.push_back(0);   // LRCP
+  PutU16(h, 1);     // one quality layer
+  h.push_back(0);   // no component transform
+  h.push_back(uint8_t(f.levels));
+  h.push_back(4);   // 64 x 64 code-blocks
+  h.push_back(4);
+  h.push_back(0);   // code-block style
+  h.push_back(f.reversible ? 1 : 0);
+  return h;
+}
+
+/** The codestream a compact layer stands for (an empty vector when its fields or its QCD are not valid). */
+std::vector<uint8_t>
+Expand(const uint8_t * stored, std::size_t n, const GridSize & grid)
+{
+  if (n < CompactLayerFieldBytes)
+    return {};
+  CompactFields f;
+  f.columns = GetU16(stored);
+  f.precision = uint32_t(stored[2] & 0x3f) + 1;
+  f.reversible = (stored[2] & 0x80) != 0;
+  f.levels = stored[3];
+  const bool implicitQcd = (stored[2] & 0x40) != 0;
+  if (implicitQcd && (f.levels > MaximumImplicitQcdLevels || f.precision > (f.reversible ? 29u : 25u)))
+    return {};
+  std::vector<uint8_t> c = MainHeader(f, grid);
+  const uint8_t *      qcd = stored + CompactLayerFieldBytes;
+  const std::size_t    rest = n - CompactLayerFieldBytes;
+  if (c.empty())
+    return {};
+  if (implicitQcd)
+  {
+    const std::vector<uint8_t> q = ImplicitQcd(f);
+    c.insert(c.end(), q.begin(), q.end());
+  }
+  else if (rest < 4 || GetU16(qcd) != 0xff5c || GetU16(qcd + 2) < 3 || 2 + std::size_t(GetU16(qcd + 2)) > rest)
+    return {};
+  const std::size_t qcdBytes = implicitQcd ? 0 : 2 + GetU16(qcd + 2);
+  const std::size_t data = rest - qcdBytes;
+  if (data + 14 > 0xffffffffu)
+    return {};
+  c.reserve(c.size() + rest + 16);
+  c.insert(c.end(), qcd, qcd + qcdBytes); // nothing when implicit
+  PutU16(c, 0xff90); // SOT: tile 0, its only tile-part
+  PutU16(c, 10);
+  PutU16(c, 0);
+  PutU32(c, uint32_t(14 + data));
+  c.push_back(0);
+  c.push_back(1);
+  PutU16(c, 0xff93); // SOD
+  c.insert(c.end(), qcd + qcdBytes, qcd + rest);
+  PutU16(c, 0xffd9); // EOC
+  return c;
+}
+} // namespace
+
+bool
+CompactLayer(const std::vector<uint8_t> & codestream, const GridSize & grid, std::vector<uint8_t> & stored)
+{
+  const std::vector<uint8_t> & c = codestream;
+  // SOC, SIZ (its fields read back), COD, QCD, SOT, SOD, ..., EOC: exactly what Expand() writes, or nothing.
+  if (c.size() < 4 + 4 + 38 + 3 + 14 + 5 + 14 || GetU16(c.data()) != 0xff4f || GetU16(c.data() + 2) != 0xff51)
+    return false;
+  const std::size_t siz = 2 + GetU16(c.data() + 4);
+  if (siz < 41 || 2 + siz + 14 > c.size())
+    return false;
+  CompactFields f;
+  const uint32_t components = GetU16(c.data() + 40);
+  if (components < 1 || 2 + 40 + 3 * std::size_t(components) > c.size())
+    return false;
+  f.columns = components > 1 ? 0 : GetU32(c.data() + 8) / uint32_t(grid.x);
+  f.precision = uint32_t(c[42] & 0x7f) + 1;
+  const std::size_t cod = 2 + siz;
+  f.levels = c[cod + 9];
+  f.reversible = c[cod + 13] == 1;
+  if (f.columns > 0xffff || f.precision > 64)
+    return false;
+  const std::vector<uint8_t> header = MainHeader(f, grid);
+  if (header.empty() || header.size() > c.size() || !std::equal(header.begin(), header.end(), c.begin()))
+    return false;
+  std::size_t p = header.size();
+  if (p + 4 > c.size() || GetU16(c.data() + p) != 0xff5c)
+    return false;
+  const std::size_t qcdBytes = 2 + GetU16(c.data() + p + 2);
+  if (p + qcdBytes + 14 + 2 > c.size())
+    return false;
+  bool implicitQcd = false;
+  if (f.levels <= MaximumImplicitQcdLevels && f.precision <= (f.reversible ? 29u : 25u))
+  {
+    const std::vector<uint8_t> q = ImplicitQcd(f);
+    implicitQcd = q.size() == qcdBytes && std::equal(q.begin(), q.end(), c.begin() + std::ptrdiff_t(p));
+  }
+  stored.clear();
+  PutU16(stored, f.columns);
+  stored.push_back(uint8_t((f.precision - 1) | (implicitQcd ? 0x40 : 0) | (f.reversible ? 0x80 : 0)));
+  stored.push_back(uint8_t(f.levels));
+  if (!implicitQcd)
+    stored.insert(stored.end(), c.begin() + std::ptrdiff_t(p), c.begin() + std::ptrdiff_t(p + qcdBytes));
+  p += qcdBytes + 14; // SOT and SOD, checked by the round trip below
+  stored.insert(stored.end(), c.begin() + std::ptrdiff_t(p), c.end() - 2);
+  if (Expand(stored.data(), stored.size(), grid) != c)
+  {
+    stored.clear();
+    return false;
+  }
+  return true;
+}
+
+std::vector<uint8_t>
+ExpandLayer(const std::vector<uint8_t> & stored, const GridSize & grid, const std::string & name)
+{
+  std::vector<uint8_t> c = Expand(stored.data(), stored.size(), grid);
+  if (c.empty())
+    throw FormatError(name + ": damaged residual layer (invalid compact fields)");
+  return c;
+}
+
+std::size_t
+StoredLayerBytes(const std::vector<uint8_t> & codestream, const GridSize & grid)
+{
+  std::vector<uint8_t> stored;
+  return CompactLayer(codestream, grid, stored) ? stored.size() : codestream.size();
+}
+
+std::size_t
+CompactLayerSaving(const GridSize & grid, Arrangement arrangement)
+{
+  const std::size_t components = arrangement == Arrangement::Components ? std::size_t(grid.z) : 1;
+  // SOC 2, SIZ 2 + 38 + 3 C, COD 14, SOT 12, SOD 2, EOC 2 and the 9/7 QCD of 5 levels (37), less the fields
+  return 2 + 40 + 3 * components + 14 + 12 + 2 + 2 + 37 - CompactLayerFieldBytes;
+}
+
 double
 ResidualStep(double peak, bool integer)
 {
   const double step = peak / 16384.0;
   return integer ? std::max(1.0, std::ceil(step)) : step;
 }
+
+namespace
+{
+/** The spline's voxels, of the pixel type T: a spline whose values are all equal (the corners under a
+ * layer that takes the whole budget) is that value everywhere, exactly as Rasterize() gives it (every
+ * cell's gradient is 0, so each voxel is the converted value; test ResidualLayer.ConstantSplineIsFilled),
+ * and needs no rasterization. */
+template <typename T>
+void
+RasterizeSpline(const Approximation & spline, T * out)
+{
+  const bool constant =
+    !spline.values.empty() && std::all_of(spline.values.begin(), spline.values.end(), [&](double v) {
+      return v == spline.values.front();
+    });
+  if (constant && spline.residual.samples.empty())
+  {
+    std::fill_n(out, spline.grid.NumberOfVoxels(), ConvertValue<T>(spline.values.front()));
+    return;
+  }
+  Approximation bare = spline;
+  bare.residual = {};
+  Rasterize(bare, out, CurrentThreads());
+}
+
+/** Sum over the grid of f(i) for every voxel i, slice by slice on the encoder's threads, added in slice
+ * order: the same sum whatever the number of threads. */
+template <typename F>
+double
+SumOverSlices(const GridSize & grid, F && f)
+{
+  std::vector<double> partial(std::size_t(grid.z), 0.0);
+  const uint64_t      plane = uint64_t(grid.x) * uint64_t(grid.y);
+  ParallelFor(std::size_t(grid.z), 1, [&](std::size_t z) {
+    double s = 0.0;
+    for (uint64_t i = z * plane, end = i + plane; i < end; ++i)
+      s += f(i);
+    partial[z] = s;
+  });
+  double sum = 0.0;
+  for (double s : partial)
+    sum += s;
+  return sum;
+}
+} // namespace
 
 ResidualSearch::ResidualSearch(const float * voxels, PixelType type, const Approximation & spline, double step,
                                std::size_t maximumBytes)
@@ -422,42 +766,52 @@ ResidualSearch::ResidualSearch(const float * voxels, PixelType type, const Appro
   best.step = step;
   VisitPixelType(type, [&](auto pixel) {
     using T = decltype(pixel);
-    const uint64_t n = grid.NumberOfVoxels();
-    splineVoxels.resize(n * sizeof(T));
-    T *           decoded = reinterpret_cast<T *>(splineVoxels.data());
-    Approximation bare = spline;
-    bare.residual = {};
-    Rasterize(bare, decoded);
-    samples.resize(n);
-    for (uint64_t i = 0; i < n; ++i)
-    {
-      const double r = std::round((double(voxels[i]) - double(decoded[i])) / step);
-      samples[i] = int32_t(std::clamp(r, -32767.0, 32767.0));
-    }
+    splineVoxels.resize(grid.NumberOfVoxels() * sizeof(T));
+    T * decoded = reinterpret_cast<T *>(splineVoxels.data());
+    RasterizeSpline(spline, decoded);
+    splineError = SumOverSlices(grid, [&](uint64_t i) {
+      const double e = double(voxels[i]) - double(decoded[i]);
+      return e * e;
+    });
+  });
+}
+
+void
+ResidualSearch::PrepareSamples()
+{
+  if (!samples.empty())
+    return;
+  const double step = best.step;
+  if (!(step > 0.0))
+    throw std::invalid_argument("ResidualSearch: the residual step must be positive");
+  VisitPixelType(type, [&](auto pixel) {
+    using T = decltype(pixel);
+    const T * decoded = reinterpret_cast<const T *>(splineVoxels.data());
+    samples.resize(grid.NumberOfVoxels());
+    ParallelFor(std::size_t(grid.z), 1, [&](std::size_t z) {
+      const uint64_t plane = uint64_t(grid.x) * uint64_t(grid.y);
+      for (uint64_t i = z * plane, end = i + plane; i < end; ++i)
+      {
+        const double r = std::round((double(voxels[i]) - double(decoded[i])) / step);
+        samples[i] = int32_t(std::clamp(r, -32767.0, 32767.0));
+      }
+    });
   });
 }
 
 double
-ResidualSearch::Try(const ResidualCoding & coding)
+ResidualSearch::Measure(std::vector<uint8_t> && codestream, const ResidualCoding & coding, double target)
 {
-  if (maximumBytes <= InterSliceLevelsFieldBytes)
-    return std::numeric_limits<double>::infinity();
-  // The levels byte comes out of the same budget.
-  const std::size_t    limit = maximumBytes - (coding.levels > 0 ? InterSliceLevelsFieldBytes : 0);
-  std::vector<uint8_t> codestream =
-    EncodeResidualLayer(samples, grid, limit, coding.wavelet, coding.arrangement, coding.levels);
-  if (codestream.empty())
-    return std::numeric_limits<double>::infinity();
+  const std::size_t stored = StoredLayerBytes(codestream, grid);
   Residual residual{ best.step, DecodeResidualLayer(codestream, grid, "residual layer", coding.levels) };
   double   error = 0.0;
   VisitPixelType(type, [&](auto pixel) {
     using T = decltype(pixel);
     const T * decoded = reinterpret_cast<const T *>(splineVoxels.data());
-    for (uint64_t i = 0, n = grid.NumberOfVoxels(); i < n; ++i)
-    {
+    error = SumOverSlices(grid, [&](uint64_t i) {
       const double e = double(voxels[i]) - double(AddResidual(decoded[i], residual, i));
-      error += e * e;
-    }
+      return e * e;
+    });
   });
   if (best.codestream.empty() || error < best.squaredError)
   {
@@ -465,8 +819,86 @@ ResidualSearch::Try(const ResidualCoding & coding)
     best.levels = coding.levels;
     best.samples = std::move(residual.samples);
     best.squaredError = error;
+    bestCoding = coding;
+    bestTarget = target;
+    bestStored = stored;
   }
   return error;
+}
+
+std::size_t
+ResidualSearch::Limit(const ResidualCoding & coding) const
+{
+  // The levels byte comes out of the same budget.
+  return maximumBytes - (coding.levels > 0 ? InterSliceLevelsFieldBytes : 0);
+}
+
+double
+ResidualSearch::Try(const ResidualCoding & coding)
+{
+  if (maximumBytes <= InterSliceLevelsFieldBytes)
+    return std::numeric_limits<double>::infinity();
+  PrepareSamples();
+  LayerImage image;
+  if (!PrepareImage(samples, grid, coding.arrangement, coding.levels, image))
+    return std::numeric_limits<double>::infinity();
+  double               target = 0.0;
+  std::vector<uint8_t> codestream =
+    EncodeWithin(image, Limit(coding), coding.wavelet, target, &grid, CompactLayerSaving(grid, coding.arrangement), &backOff);
+  if (codestream.empty())
+    return std::numeric_limits<double>::infinity();
+  return Measure(std::move(codestream), coding, target);
+}
+
+std::size_t
+ResidualSearch::Fill(std::size_t slack, int attempts)
+{
+  if (best.codestream.empty())
+    return 0;
+  const std::size_t limit = Limit(bestCoding);
+  if (limit - bestStored <= slack)
+    return 0;
+  LayerImage image;
+  if (!PrepareImage(samples, grid, bestCoding.arrangement, bestCoding.levels, image))
+    return 0;
+  // OpenJPEG's size follows its target within a few bytes, not monotonically: aim at the bytes left from
+  // the largest target that fit, then back from the smallest that did not by its excess, within the two.
+  const ResidualCoding coding = bestCoding;
+  double               fitTarget = bestTarget, fitSize = double(bestStored);
+  double               overTarget = 0.0, overSize = 0.0;
+  std::size_t          tried = 0;
+  for (int attempt = 0; attempt < attempts && double(limit) - fitSize > double(slack); ++attempt)
+  {
+    double target = overTarget > 0.0 ? overTarget - (overSize - double(limit)) - 1.0 : fitTarget + (double(limit) - fitSize);
+    if (overTarget > 0.0 && !(target > fitTarget && target < overTarget))
+      target = 0.5 * (fitTarget + overTarget);
+    std::vector<uint8_t> codestream = EncodeAt(image, target, coding.wavelet);
+    ++tried;
+    if (codestream.empty())
+      break;
+    const std::size_t stored = StoredLayerBytes(codestream, grid);
+    if (stored <= limit)
+    {
+      // All of the image fits (no rate allocation past raw size), or a larger target gave no more bytes
+      // with none too large yet: there is nothing to fill.
+      const bool complete = target >= image.raw || (overTarget == 0.0 && double(stored) <= fitSize);
+      if (double(stored) > fitSize)
+        fitSize = double(stored);
+      fitTarget = std::max(fitTarget, target);
+      Measure(std::move(codestream), coding, target);
+      if (complete)
+        break;
+    }
+    else
+    {
+      if (overTarget == 0.0 || target < overTarget)
+      {
+        overTarget = target;
+        overSize = double(stored);
+      }
+    }
+  }
+  return tried;
 }
 
 ResidualChoice

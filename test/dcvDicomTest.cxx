@@ -407,8 +407,11 @@ TEST_F(GeneratedSeries, ReturnedSeriesHasExactlyThePsnrCompressPrinted)
     const auto voxels = original->GetBufferedRegion().GetNumberOfPixels();
     ASSERT_EQ(returned->GetBufferedRegion().GetNumberOfPixels(), voxels);
     const auto decodedRange = std::minmax_element(decoded->GetBufferPointer(), decoded->GetBufferPointer() + voxels);
-    // The case this guards: decoded values below what the original's encoding stores.
-    EXPECT_LT(*decodedRange.first, -1024) << "the decoding no longer undershoots: the test guards nothing";
+    // The case this guards: decoded values below what the original's encoding stores. The points
+    // undershoot; at --bpv 0.5 the encoder keeps a layer over the constant corners, whose decoder clips
+    // at the original's minimum, so there the series must only be exact.
+    if (target.rfind("--points", 0) == 0)
+      EXPECT_LT(*decodedRange.first, -1024) << "the decoding no longer undershoots: the test guards nothing";
     std::size_t differ = 0;
     for (std::size_t i = 0; i < voxels; ++i)
       differ += decoded->GetBufferPointer()[i] != returned->GetBufferPointer()[i] ? 1 : 0;

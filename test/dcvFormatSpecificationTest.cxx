@@ -123,7 +123,9 @@ DecodeWithTheLibrary(const std::string & path)
   ParseFile(d.bytes, path, d.header, d.payload);
   const FileHeader & h = d.header;
   d.approximation =
-    DecodePayload(d.payload, h.size, h.numberOfPoints, h.quantizationOrigin, h.quantizationStep, path, h.scale);
+    h.constantSpline
+      ? DecodeMesh(CompressedFile{ path, h, d.payload, d.bytes.size() })
+      : DecodePayload(d.payload, h.size, h.numberOfPoints, h.quantizationOrigin, h.quantizationStep, path, h.scale);
   return d;
 }
 
@@ -277,7 +279,7 @@ protected:
     const int  deflated = d.bytes[6] & 16;      // the writer's choice; the pairs below check the inflated block
     const int  axisDirection = d.bytes[6] & 64; // the writer's choice; the matrix is checked below
     const int  flags = (direction ? 1 : 0) | axisDirection | (h.metadata.empty() ? 0 : 2) | (scaled ? 4 : 0) |
-                      (residual ? 8 : 0) | deflated | (h.residualLevels > 0 ? 32 : 0);
+                      (residual ? 8 : 0) | deflated | (h.residualLevels > 0 ? 32 : 0) | (residual ? 128 : 0);
     const Tokens type = field("pixel_type");
     const Tokens mode = field("mode");
     EXPECT_EQ(field("version"), Tokens{ std::to_string(FileHeader::Version) });
@@ -296,6 +298,10 @@ protected:
     EXPECT_EQ(field("payload_bytes"), Tokens{ std::to_string(d.payload.size()) });
     if (residual)
     {
+      std::vector<uint8_t> compact;
+      const int            form = (h.constantSpline ? 1 : 0) | (h.residualStep == 1.0 ? 2 : 0) |
+                       (CompactLayer(h.residualLayer, h.size, compact) ? 4 : 0);
+      EXPECT_EQ(field("form"), Tokens{ std::to_string(form) });
       EXPECT_EQ(numbers(field("residual_step")), std::vector<double>{ h.residualStep });
       EXPECT_EQ(field("residual_levels"), Tokens{ std::to_string(h.residualLevels) });
       EXPECT_EQ(field("residual_bytes"), Tokens{ std::to_string(h.residualLayer.size()) });

@@ -30,6 +30,7 @@
 #include <cmath>
 #include <iostream>
 #include <random>
+#include <zlib.h>
 
 namespace
 {
@@ -182,7 +183,7 @@ TEST(ResidualLayer, ContainerCarriesIt)
   EXPECT_EQ(back.metadata, h.metadata);
   EXPECT_EQ(payload, (std::vector<uint8_t>{ 7, 7 }));
   h.residualStep = 0.0;
-  EXPECT_EQ(dcv::SerializeFile(h, { 7, 7 }).size() + 8 + 4 + 5, bytes.size());
+  EXPECT_EQ(dcv::SerializeFile(h, { 7, 7 }).size() + 1 + 8 + 4 + 5, bytes.size()); // form, step, length, layer
   h.residualStep = -1.0;
   EXPECT_THROW(dcv::SerializeFile(h, { 7, 7 }), std::invalid_argument);
 }
@@ -246,4 +247,211 @@ TEST(ResidualLayer, RegionDecodeAddsTheLayer)
     for (int32_t y = first[1]; y <= last[1]; ++y)
       for (int32_t x = first[0]; x <= last[0]; ++x)
         EXPECT_EQ(box[i++], whole[g.Offset(x, y, z)]);
+}
+
+// The compact form leaves out SOC, SIZ, COD, SOT, SOD, EOC and (9/7, up to 5 levels) the QCD, and gives
+// the very codestream back, for both arrangements, both wavelets and every number of resolutions.
+TEST(ResidualLayer, CompactFormGivesTheCodestreamBack)
+{
+  int compacted = 0;
+  for (const GridSize g : { GridSize{ 40, 36, 6 }, GridSize{ 7, 5, 3 }, GridSize{ 3, 2, 2 }, GridSize{ 130, 70, 5 } })
+    for (dcv::Arrangement a : { dcv::Arrangement::Mosaic, dcv::Arrangement::Components })
+      for (dcv::Wavelet w : { dcv::Wavelet::Irreversible97, dcv::Wavelet::Reversible53 })
+        for (int amplitude : { 3, 300, 20000 }) // precisions 4 to 16
+        {
+          SCOPED_TRACE(std::to_string(g.x) + "x" + std::to_string(g.y) + "x" + std::to_string(g.z) + " amplitude " +
+                       std::to_string(amplitude) + (a == dcv::Arrangement::Mosaic ? " mosaic" : " components") +
+                       (w == dcv::Wavelet::Reversible53 ? " 5/3" : " 9/7"));
+          const auto codestream = dcv::EncodeResidualLayer(Samples(g, amplitude, 5), g, 1 << 20, w, a);
+          ASSERT_FALSE(codestream.empty());
+          std::vector<uint8_t> stored;
+          ASSERT_TRUE(dcv::CompactLayer(codestream, g, stored));
+          EXPECT_EQ(dcv::ExpandLayer(stored, g, "x"), codestream);
+          EXPECT_EQ(dcv::StoredLayerBytes(codestream, g), stored.size());
+          // The QCD is implicit too: the saving the encoder counts on (9/7 at 6 resolutions; 5/3 has a
+          // shorter QCD, fewer resolutions fewer bands).
+          const bool sixResolutions = std::min(g.x, g.y) >= 32;
+          if (w == dcv::Wavelet::Irreversible97 && sixResolutions)
+            EXPECT_EQ(codestream.size() - stored.size(), dcv::CompactLayerSaving(g, a));
+          EXPECT_EQ(stored[2] & 0x40, 0x40) << "QCD not implicit";
+          ++compacted;
+        }
+  EXPECT_EQ(compacted, 4 * 2 * 2 * 3);
+
+  // What is not OpenJPEG's layout stays whole, and a compact layer with bad fields is refused by name.
+  const GridSize g{ 40, 36, 6 };
+  auto           codestream = dcv::EncodeResidualLayer(Samples(g, 300, 5), g, 4000, dcv::Wavelet::Irreversible97);
+  std::vector<uint8_t> stored;
+  ASSERT_TRUE(dcv::CompactLayer(codestream, g, stored));
+  auto other = codestream;
+  other[other.size() - 1] = 0xd8; // not EOC
+  EXPECT_FALSE(dcv::CompactLayer(other, g, stored));
+  EXPECT_TRUE(stored.empty());
+  EXPECT_FALSE(dcv::CompactLayer(codestream, GridSize{ 40, 36, 7 }, stored)) << "another grid's mosaic";
+  ASSERT_TRUE(dcv::CompactLayer(codestream, g, stored));
+  for (auto damage : std::vector<std::pair<std::size_t, uint8_t>>{ { 1, 7 },      // more columns than slices
+                                                                    { 2, 0x7f },   // precision 64
+                                                                    { 3, 33 },     // levels
+                                                                    { 3, 6 } })    // implicit QCD past 5 levels
+  {
+    auto bad = stored;
+    bad[damage.first] = damage.second;
+    try
+    {
+      dcv::ExpandLayer(bad, g, "'bad.dcv'");
+      ADD_FAILURE() << "byte " << damage.first << " = " << int(damage.second) << " accepted";
+    }
+    catch (const dcv::FormatError & e)
+    {
+      EXPECT_NE(std::string(e.what()).find("'bad.dcv': damaged residual layer"), std::string::npos) << e.what();
+    }
+  }
+  EXPECT_THROW(dcv::ExpandLayer({ 0, 1, 7 }, g, "x"), dcv::FormatError);
+}
+
+// The constant spline under a layer that takes the whole budget is filled, not rasterized: the same
+// voxels as Rasterize() gives, for integer and floating types and values off the integers.
+TEST(ResidualLayer, ConstantSplineIsFilled)
+{
+  const GridSize g{ 9, 7, 5 };
+  for (double value : { 128.0, -1023.5, 0.3, 70000.7 })
+  {
+    dcv::Approximation a;
+    a.grid = g;
+    for (int32_t z : { 0, g.z - 1 })
+      for (int32_t y : { 0, g.y - 1 })
+        for (int32_t x : { 0, g.x - 1 })
+          a.points.push_back({ x, y, z });
+    a.values.assign(8, value);
+    for (const dcv::GridScale scale : { dcv::GridScale{ { 1, 1, 1 } }, dcv::GridScale{ { 1, 1, 7 } } })
+    {
+      a.scale = scale;
+      a.tetrahedra = dcv::Tetrahedralize(a.points, a.scale);
+      std::vector<int16_t> i16(g.NumberOfVoxels(), 1);
+      std::vector<float>   f32(g.NumberOfVoxels(), 1.0f);
+      std::vector<uint8_t> u8(g.NumberOfVoxels(), 1);
+      dcv::Rasterize(a, i16.data());
+      dcv::Rasterize(a, f32.data());
+      dcv::Rasterize(a, u8.data());
+      for (std::size_t i = 0; i < i16.size(); ++i)
+      {
+        ASSERT_EQ(i16[i], dcv::ConvertValue<int16_t>(value)) << value << " voxel " << i;
+        ASSERT_EQ(f32[i], dcv::ConvertValue<float>(value)) << value << " voxel " << i;
+        ASSERT_EQ(u8[i], dcv::ConvertValue<uint8_t>(value)) << value << " voxel " << i;
+      }
+    }
+    // And the search measures the same error from its filled spline as from the rasterized one.
+    std::vector<float> voxels(g.NumberOfVoxels());
+    for (std::size_t i = 0; i < voxels.size(); ++i)
+      voxels[i] = float(int(i % 13) * 10);
+    std::vector<int16_t> decoded(g.NumberOfVoxels());
+    dcv::Rasterize(a, decoded.data());
+    const dcv::ResidualSearch search(voxels.data(), dcv::PixelType::Int16, a, 1.0, 1000);
+    EXPECT_EQ(search.SplineError(), dcv::SquaredError(voxels.data(), decoded.data(), decoded.size())) << value;
+  }
+}
+
+// Filling the budget never takes more than it, never decodes worse, and stops at once where the whole
+// image fits (6100 and 9000 bytes here: more target, no more bytes).
+TEST(ResidualLayer, FillStaysWithinTheBudgetAndDecodesNoWorse)
+{
+  const GridSize     g{ 64, 60, 8 };
+  const auto         image = ThickSlices(g);
+  std::vector<float> voxels(image->GetBufferPointer(), image->GetBufferPointer() + g.NumberOfVoxels());
+  dcv::Approximation corners;
+  corners.grid = g;
+  for (int32_t z : { 0, g.z - 1 })
+    for (int32_t y : { 0, g.y - 1 })
+      for (int32_t x : { 0, g.x - 1 })
+        corners.points.push_back({ x, y, z });
+  corners.values.assign(8, 0.0);
+  corners.tetrahedra = dcv::Tetrahedralize(corners.points);
+  int filled = 0;
+  for (std::size_t budget : { 1500, 2500, 4000, 6100, 9000 })
+  {
+    dcv::ResidualSearch search(voxels.data(), dcv::PixelType::Int16, corners, 1.0, budget);
+    const double        first = search.Try({ dcv::Wavelet::Irreversible97, dcv::Arrangement::Mosaic, 0 });
+    const std::size_t   unused = search.Unused();
+    ASSERT_LE(unused, budget);
+    const std::size_t encodes = search.Fill(0, 6);
+    EXPECT_LE(search.BestError(), first) << budget;
+    EXPECT_LE(search.Unused(), unused) << budget;
+    EXPECT_EQ(encodes > 0, unused > 0) << budget;
+    if (budget >= 6100)
+      EXPECT_EQ(encodes, 1u) << budget;
+    filled += search.Unused() < unused ? 1 : 0;
+    const dcv::ResidualChoice best = std::move(search).Best();
+    EXPECT_LE(dcv::StoredLayerBytes(best.codestream, g), budget);
+    // What it kept decodes to what it measured.
+    EXPECT_EQ(dcv::DecodeResidualLayer(best.codestream, g, "x", best.levels), best.samples);
+  }
+  std::cout << filled << " of 5 budgets filled further" << std::endl;
+}
+
+// Form bits: a constant spline takes no q, n, L or payload; a unit step is not stored; unknown form bits,
+// a form byte without a layer and a constant spline with a payload are refused.
+TEST(ResidualLayer, FormByteShortensTheContainer)
+{
+  const GridSize       g{ 40, 36, 6 };
+  dcv::FileHeader      h;
+  h.size = g;
+  h.numberOfPoints = 8;
+  h.quantizationOrigin = 128.0;
+  h.quantizationStep = 4.0;
+  h.residualStep = 1.0;
+  h.residualLayer = dcv::EncodeResidualLayer(Samples(g, 300, 5), g, 3000, dcv::Wavelet::Irreversible97);
+  const std::vector<uint8_t> payload{ 1, 2, 3, 4, 5, 6 };
+  const auto                 points = dcv::SerializeFile(h, payload);
+  h.constantSpline = true;
+  EXPECT_THROW(dcv::SerializeFile(h, payload), std::invalid_argument);
+  const auto constant = dcv::SerializeFile(h, {});
+  EXPECT_EQ(points.size() - constant.size(), 8 + 4 + 4 + payload.size()); // q, n, L, payload
+  dcv::FileHeader      back;
+  std::vector<uint8_t> backPayload{ 9 };
+  dcv::ParseFile(constant, "c", back, backPayload);
+  EXPECT_TRUE(back.constantSpline);
+  EXPECT_EQ(back.quantizationOrigin, 128.0);
+  EXPECT_EQ(back.numberOfPoints, 8u);
+  EXPECT_TRUE(backPayload.empty());
+  EXPECT_EQ(back.residualStep, 1.0);
+  EXPECT_EQ(back.residualLayer, h.residualLayer);
+  // The decoder's spline: the 8 corners at q0.
+  dcv::CompressedFile file{ "c", back, backPayload, constant.size() };
+  const dcv::Approximation a = dcv::Decode(file);
+  EXPECT_EQ(a.points.size(), 8u);
+  EXPECT_EQ(a.values, std::vector<double>(8, 128.0));
+  EXPECT_EQ(a.residual.samples, dcv::DecodeResidualLayer(h.residualLayer, g, "c"));
+
+  // A step other than 1 is stored (8 bytes); a codestream not in OpenJPEG's layout is stored whole.
+  h.residualStep = 2.0;
+  EXPECT_EQ(dcv::SerializeFile(h, {}).size(), constant.size() + 8);
+  auto whole = h;
+  whole.residualLayer.back() = 0xd8;
+  EXPECT_EQ(dcv::SerializeFile(whole, {}).size(), dcv::SerializeFile(h, {}).size() + dcv::CompactLayerSaving(g, dcv::Arrangement::Mosaic));
+  dcv::ParseFile(dcv::SerializeFile(whole, {}), "w", back, backPayload);
+  EXPECT_EQ(back.residualLayer, whole.residualLayer);
+
+  // Damaged forms, with their CRC made right so that the form itself is what is refused.
+  auto refuse = [](std::vector<uint8_t> bytes, std::size_t at, uint8_t value, const std::string & what) {
+    bytes[at] = value;
+    const uint32_t crc = uint32_t(crc32(0L, bytes.data(), uInt(bytes.size() - 4)));
+    for (int i = 0; i < 4; ++i)
+      bytes[bytes.size() - 4 + std::size_t(i)] = uint8_t(crc >> (8 * i));
+    dcv::FileHeader      x;
+    std::vector<uint8_t> p;
+    try
+    {
+      dcv::ParseFile(bytes, "'d.dcv'", x, p);
+      ADD_FAILURE() << what << " accepted";
+    }
+    catch (const dcv::FormatError & e)
+    {
+      EXPECT_NE(std::string(e.what()).find(what), std::string::npos) << e.what();
+    }
+  };
+  const std::size_t form = 62; // no direction, no scale: the form byte follows the origin
+  ASSERT_EQ(constant[6] & 128, 128);
+  ASSERT_EQ(constant[form], 1 | 2 | 4);
+  refuse(constant, form, 1 | 2 | 4 | 8, "unknown form bits 15");
+  refuse(constant, 6, uint8_t(constant[6] & ~8), "unknown header flags");
 }
