@@ -34,11 +34,11 @@ cmp -s "$out/include/DelaunayCompressionExport.h.new" "$out/include/DelaunayComp
 rm -f "$out/include/DelaunayCompressionExport.h.new"
 
 flags=(-std=c++17 -O1 -g -fno-omit-frame-pointer -fsanitize=address,undefined -fno-sanitize-recover=undefined
-  -Iinclude -I"$out/include" -DNDEBUG)
+  -Iinclude -I"$out/include" -isystem /usr/include/eigen3 -DNDEBUG)
 core=(dcvFileFormat dcvCodec dcvArithmeticCoder dcvPositionCoder dcvApproximation dcvTetrahedralization
-  dcvResidualLayer)
+  dcvResidualLayer dcvInterSliceWavelet)
 # What src/itkDCV*IO.cxx need besides: the encoder (DCVImageIO writes too).
-encoder=(dcvEncoder dcvRateControl dcvRefinementEngine dcvInterSliceWavelet)
+encoder=(dcvEncoder dcvRateControl dcvRefinementEngine)
 compile() { # SOURCE OBJECT COMPILER FLAGS...: when the source or a header is newer than the object
   local source=$1 object=$2
   shift 2
