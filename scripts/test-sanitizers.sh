@@ -1,10 +1,12 @@
 #!/usr/bin/env bash
 # CI's second build: the whole test suite built with AddressSanitizer (and LeakSanitizer) and
 # UndefinedBehaviorSanitizer (gcc; -O1, line tables, any undefined behaviour fatal) in build-asan/, run by
-# ctest; then a short libFuzzer run of every fuzz target (scripts/fuzz.sh, DCV_CI_FUZZ_SECONDS per target,
+# ctest; the decoder of build/ (scripts/test.sh) under valgrind on the fuzz seeds; then a short libFuzzer
+# run of every fuzz target (scripts/fuzz.sh, DCV_CI_FUZZ_SECONDS per target,
 # default 30; 0 skips it). Fails on any sanitizer report, in the tests or in the programs they run, even
 # where a test expected its program to fail: every report goes to build-asan/sanitizer-reports/, which must
-# stay empty.
+# stay empty. Not built: the benchmarks (no test runs them); the wrapping check compiles two pixel types
+# instead of ten (the normal build compiles them all; here its test only runs what it creates).
 set -euo pipefail
 cd "$(dirname "$0")/.."
 bash scripts/setup.sh
@@ -12,7 +14,7 @@ start=$SECONDS
 
 cmake -S . -B build-asan -G Ninja -DDCV_SANITIZE=ON -DCMAKE_BUILD_TYPE=RelWithDebInfo \
   -DCMAKE_CXX_FLAGS_RELWITHDEBINFO="-O1 -g1 -DNDEBUG" -DCMAKE_C_FLAGS_RELWITHDEBINFO="-O1 -g1 -DNDEBUG" \
-  -DDelaunayCompression_BUILD_BENCHMARKS=OFF >/dev/null
+  -DDelaunayCompression_BUILD_BENCHMARKS=OFF -DDelaunayCompression_WRAP_CHECK_TYPES="UC;F" >/dev/null
 cmake --build build-asan
 echo "sanitizer build: $((SECONDS - start)) s"
 
@@ -38,6 +40,34 @@ if [ -n "$(ls -A "$reports")" ]; then
   status=1
 fi
 [ $status -eq 0 ] || exit $status
+
+# The decoder under valgrind (memcheck), the Release build of scripts/test.sh: every seed of fuzz/corpus
+# decoded to voxels (dcv decompress) and to a mesh (dcv mesh). The whole test suite under valgrind would
+# take hours; ASan covers it above.
+if [ -x build/tools/dcv/dcv ]; then
+  command -v valgrind >/dev/null || {
+    sudo=""
+    [ "$(id -u)" -eq 0 ] || sudo=sudo
+    DEBIAN_FRONTEND=noninteractive $sudo apt-get install -y -qq --no-install-recommends valgrind >/dev/null
+  }
+  valgrind_start=$SECONDS
+  out=build/valgrind
+  rm -rf "$out"
+  mkdir -p "$out"
+  for f in fuzz/corpus/*.dcv; do
+    n=$(basename "$f" .dcv)
+    for run in "decompress $f $out/$n.nrrd" "mesh $f $out/$n.vtu"; do
+      if ! valgrind -q --error-exitcode=99 --leak-check=full --errors-for-leak-kinds=definite \
+        build/tools/dcv/dcv $run >"$out/$n.log" 2>&1; then
+        echo "valgrind: dcv $run"
+        cat "$out/$n.log"
+        status=1
+      fi
+    done
+  done
+  echo "valgrind (dcv decompress and mesh on $(ls fuzz/corpus/*.dcv | wc -l) files): $((SECONDS - valgrind_start)) s"
+  [ $status -eq 0 ] || exit $status
+fi
 
 fuzz_seconds=${DCV_CI_FUZZ_SECONDS:-30}
 if [ "$fuzz_seconds" -gt 0 ]; then
