@@ -22,8 +22,7 @@
 // Anything but a FormatError (a crash, a sanitizer report, another exception, a hang, an oom) is a finding.
 #include "dcvCodec.h"
 #include "dcvFileFormat.h"
-
-#include <zlib.h>
+#include "dcvFuzzCrc.h"
 
 #include <cstdint>
 #include <cstdlib>
@@ -34,13 +33,7 @@ LLVMFuzzerTestOneInput(const uint8_t * data, size_t size)
 {
   std::vector<uint8_t> bytes(data, data + size);
 #ifdef DCV_FUZZ_FIX_CRC
-  if (bytes.size() >= 8)
-  {
-    const std::size_t body = bytes.size() - 4;
-    const uint32_t    crc = uint32_t(::crc32(::crc32(0L, Z_NULL, 0), bytes.data(), uInt(body)));
-    for (int i = 0; i < 4; ++i)
-      bytes[body + i] = uint8_t(crc >> (8 * i));
-  }
+  FixCrc32(bytes);
 #endif
   // The decoder's own limit keeps every input within libFuzzer's memory and time limits: a file that
   // needs more is refused before anything is allocated, which is what this target checks.

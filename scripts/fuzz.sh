@@ -1,18 +1,22 @@
 #!/usr/bin/env bash
-# Fuzzes the decode path (ParseFile -> Decode -> Rasterize) with libFuzzer, ASan and UBSan, for SECONDS
-# per target (default 60; 0: build only):
-#   bash scripts/fuzz.sh [SECONDS] [TARGET...]      targets: decode (CRC-32 as is), decode-crc (recomputed)
-# Builds the ITK-free core with clang in build-fuzz/ (Debian's ITK 5.2 headers refuse clang), seeds each
-# target's corpus (build-fuzz/corpus/TARGET, kept between runs) with fuzz/corpus/, and prints libFuzzer's
-# final figures. Inputs that crash, hang or exhaust memory are written to build-fuzz/findings/; each becomes
-# a regression test (test/fuzz-findings/ and dcvResourceLimitsTest).
+# Fuzzes the decode path with libFuzzer, ASan and UBSan, for SECONDS per target (default 60; 0: build only):
+#   bash scripts/fuzz.sh [SECONDS] [TARGET...]
+# Targets: decode (ParseFile -> Decode -> Rasterize, the CRC-32 as is), decode-crc (the CRC-32 recomputed so
+# that mutations reach the payload decoder), io and io-crc (the same two for the ITK entry points:
+# DCVImageIO and DCVMeshIO CanReadFile / ReadImageInformation / Read on each input written to a file).
+# Builds the ITK-free core with clang in build-fuzz/ (Debian's ITK 5.2 headers refuse clang) and the ITK
+# side of the io targets (src/itkDCV*IO.cxx, fuzz/dcvIOFuzzShim.cxx) with g++, seeds each target's corpus
+# (build-fuzz/corpus/TARGET, kept between runs) with fuzz/corpus/, and prints libFuzzer's final figures.
+# Inputs that crash, hang or exhaust memory are written to build-fuzz/findings/ and the exit status is 1;
+# each becomes a regression test (test/fuzz-findings/, the FuzzCorpus test). DCV_FUZZ_JOBS (default 1):
+# targets fuzzed at once.
 set -euo pipefail
 cd "$(dirname "$0")/.."
 bash scripts/setup.sh --fuzz
 seconds=${1:-60}
 shift || true
 targets=("$@")
-[ ${#targets[@]} -gt 0 ] || targets=(decode decode-crc)
+[ ${#targets[@]} -gt 0 ] || targets=(decode decode-crc io io-crc)
 
 out=build-fuzz
 mkdir -p "$out/obj" "$out/include" "$out/findings"
@@ -30,41 +34,95 @@ cmp -s "$out/include/DelaunayCompressionExport.h.new" "$out/include/DelaunayComp
 rm -f "$out/include/DelaunayCompressionExport.h.new"
 
 flags=(-std=c++17 -O1 -g -fno-omit-frame-pointer -fsanitize=address,undefined -fno-sanitize-recover=undefined
-  -Iinclude -I"$out/include" -DNDEBUG)
+  -Iinclude -I"$out/include" -isystem /usr/include/eigen3 -DNDEBUG)
 core=(dcvFileFormat dcvCodec dcvArithmeticCoder dcvPositionCoder dcvApproximation dcvTetrahedralization
-  dcvResidualLayer)
-objects=()
-for s in "${core[@]}"; do
-  o="$out/obj/$s.o"
-  if [ ! -f "$o" ] || [ -n "$(find src/$s.cxx include -newer "$o" -name '*.[hc]*' | head -1)" ]; then
-    echo "clang++ src/$s.cxx"
-    clang++ "${flags[@]}" -fsanitize=fuzzer-no-link -c "src/$s.cxx" -o "$o"
-  fi
-  objects+=("$o")
-done
-libs=(-lz -lopenjp2 -ltbb -lgmp -lmpfr -pthread)
-link() { # TARGET [DEFINES...]: relinked when the fuzzer or an object is newer
-  local target="$out/fuzz-$1"
-  shift
-  if [ ! -f "$target" ] || [ -n "$(find fuzz/dcvDecodeFuzzer.cxx "${objects[@]}" -newer "$target" | head -1)" ]; then
-    echo "link $target"
-    clang++ "${flags[@]}" -fsanitize=fuzzer "$@" fuzz/dcvDecodeFuzzer.cxx "${objects[@]}" "${libs[@]}" -o "$target"
+  dcvResidualLayer dcvInterSliceWavelet)
+# What src/itkDCV*IO.cxx need besides: the encoder (DCVImageIO writes too).
+encoder=(dcvEncoder dcvRateControl dcvRefinementEngine)
+compile() { # SOURCE OBJECT COMPILER FLAGS...: when the source or a header is newer than the object
+  local source=$1 object=$2
+  shift 2
+  if [ ! -f "$object" ] || [ -n "$(find "$source" include fuzz/*.h -newer "$object" -name '*.[hc]*' | head -1)" ]; then
+    echo "$1 $source"
+    "$@" -c "$source" -o "$object"
   fi
 }
-link decode
-link decode-crc -DDCV_FUZZ_FIX_CRC
+objects=()
+for s in "${core[@]}"; do
+  compile "src/$s.cxx" "$out/obj/$s.o" clang++ "${flags[@]}" -fsanitize=fuzzer-no-link
+  objects+=("$out/obj/$s.o")
+done
+encoder_objects=()
+for s in "${encoder[@]}"; do
+  compile "src/$s.cxx" "$out/obj/$s.o" clang++ "${flags[@]}" -fsanitize=fuzzer-no-link
+  encoder_objects+=("$out/obj/$s.o")
+done
+# The ITK side, by g++ with ASan and UBSan (its instrumentation calls the ASan and UBSan runtime that clang
+# links into the fuzzer; libFuzzer's coverage comes from the clang-built core).
+itk_flags=(-std=c++17 -O1 -g -fno-omit-frame-pointer -fsanitize=address,undefined -fno-sanitize-recover=undefined
+  -Iinclude -I"$out/include" -Ifuzz -isystem /usr/include/ITK-5.2 -isystem /usr/include/eigen3 -DNDEBUG)
+itk_objects=()
+for s in src/itkDCVImageIO.cxx src/itkDCVMeshIO.cxx fuzz/dcvIOFuzzShim.cxx; do
+  o="$out/obj/$(basename "$s" .cxx).gcc.o"
+  compile "$s" "$o" g++ "${itk_flags[@]}"
+  itk_objects+=("$o")
+done
+libs=(-lz -lopenjp2 -ltbb -lgmp -lmpfr -pthread)
+itk_libs=(-L/usr/lib -lITKIOMeshBase-5.2 -lITKIOImageBase-5.2 -lITKCommon-5.2 -litkvnl_algo-5.2 -litkvnl-5.2
+  -litksys-5.2 -Wl,-rpath,/usr/lib)
+link() { # TARGET SOURCE [OPTIONS...]: relinked when the source, a fuzz/ header or an object is newer
+  local target="$out/fuzz-$1" source=$2
+  shift 2
+  if [ ! -f "$target" ] || [ -n "$(find "$source" fuzz/*.h "${objects[@]}" "${encoder_objects[@]}" "${itk_objects[@]}" \
+    -newer "$target" | head -1)" ]; then
+    echo "link $target"
+    clang++ "${flags[@]}" -Ifuzz -fsanitize=fuzzer "$source" "$@" -o "$target"
+  fi
+}
+link decode fuzz/dcvDecodeFuzzer.cxx "${objects[@]}" "${libs[@]}"
+link decode-crc fuzz/dcvDecodeFuzzer.cxx -DDCV_FUZZ_FIX_CRC "${objects[@]}" "${libs[@]}"
+link io fuzz/dcvIOFuzzer.cxx "${itk_objects[@]}" "${objects[@]}" "${encoder_objects[@]}" "${itk_libs[@]}" "${libs[@]}"
+link io-crc fuzz/dcvIOFuzzer.cxx -DDCV_FUZZ_FIX_CRC "${itk_objects[@]}" "${objects[@]}" "${encoder_objects[@]}" \
+  "${itk_libs[@]}" "${libs[@]}"
 
 [ "$seconds" -gt 0 ] || exit 0 # 0: build only
 
-status=0
-for t in "${targets[@]}"; do
+run() { # TARGET: fuzzes it; its figures and findings printed when it ends
+  local t=$1 rc=0
   mkdir -p "$out/corpus/$t"
-  echo "== $t: $seconds s"
   # -timeout: a run over 25 s is a hang; -rss_limit_mb: the decoder's limit (64 MiB) keeps far below it.
   "$out/fuzz-$t" "$out/corpus/$t" fuzz/corpus -max_total_time="$seconds" -timeout=25 -rss_limit_mb=2048 \
-    -max_len=65536 -print_final_stats=1 -artifact_prefix="$out/findings/$t-" >"$out/$t.log" 2>&1 || status=1
-  grep -E "^#[0-9]+ +DONE|stat::number_of_executed_units|stat::peak_rss_mb|ERROR|SUMMARY" "$out/$t.log" || true
-  tail -n 1 "$out/$t.log"
+    -max_len=65536 -print_final_stats=1 -artifact_prefix="$out/findings/$t-" >"$out/$t.log" 2>&1 || rc=1
+  {
+    echo "== $t: $seconds s"
+    grep -E "^#[0-9]+[[:space:]]+DONE|stat::number_of_executed_units|stat::slowest_unit_time_sec|stat::peak_rss_mb|ERROR|SUMMARY" \
+      "$out/$t.log" || true
+  } | sed "s/^/[$t] /"
+  return $rc
+}
+status=0
+jobs=${DCV_FUZZ_JOBS:-1}
+running=0
+for t in "${targets[@]}"; do
+  [ -x "$out/fuzz-$t" ] || { echo "unknown target: $t" >&2; exit 2; }
+  if [ "$running" -ge "$jobs" ]; then
+    wait -n || status=1
+    running=$((running - 1))
+  fi
+  run "$t" &
+  running=$((running + 1))
 done
-ls "$out/findings" | sed 's/^/finding: /'
+while [ "$running" -gt 0 ]; do
+  wait -n || status=1
+  running=$((running - 1))
+done
+# A slow unit (over 10 s, -report_slow_units) is kept for a look but is no failure on a loaded machine; a
+# timeout (25 s), crash, leak or out-of-memory is.
+for f in "$out"/findings/*; do
+  [ -e "$f" ] || continue
+  case "$f" in
+  *-slow-unit-*) echo "slow input (not a failure): $f" ;;
+  *) echo "finding: $f" ;;
+  esac
+done
 exit $status

@@ -1,0 +1,79 @@
+#!/usr/bin/env bash
+# CI's second build: the whole test suite built with AddressSanitizer (and LeakSanitizer) and
+# UndefinedBehaviorSanitizer (gcc; -O1, line tables, any undefined behaviour fatal) in build-asan/, run by
+# ctest; the decoder of build/ (scripts/test.sh) under valgrind on the fuzz seeds; then a short libFuzzer
+# run of every fuzz target (scripts/fuzz.sh, DCV_CI_FUZZ_SECONDS per target,
+# default 30; 0 skips it). Fails on any sanitizer report, in the tests or in the programs they run, even
+# where a test expected its program to fail: every report goes to build-asan/sanitizer-reports/, which must
+# stay empty. Not built: the benchmarks (no test runs them); the wrapping check compiles two pixel types
+# instead of ten (the normal build compiles them all; here its test only runs what it creates).
+set -euo pipefail
+cd "$(dirname "$0")/.."
+bash scripts/setup.sh
+start=$SECONDS
+
+cmake -S . -B build-asan -G Ninja -DDCV_SANITIZE=ON -DCMAKE_BUILD_TYPE=RelWithDebInfo \
+  -DCMAKE_CXX_FLAGS_RELWITHDEBINFO="-O1 -g1 -DNDEBUG" -DCMAKE_C_FLAGS_RELWITHDEBINFO="-O1 -g1 -DNDEBUG" \
+  -DDelaunayCompression_BUILD_BENCHMARKS=OFF -DDelaunayCompression_WRAP_CHECK_TYPES="UC;F" >/dev/null
+cmake --build build-asan
+echo "sanitizer build: $((SECONDS - start)) s"
+
+reports="$PWD/build-asan/sanitizer-reports"
+rm -rf "$reports"
+mkdir -p "$reports"
+supp="$PWD/test/sanitizers"
+# A report aborts the process (halt_on_error) and is written to $reports/KIND.PID, not to the output a
+# test may compare.
+export ASAN_OPTIONS="halt_on_error=1:abort_on_error=1:detect_leaks=1:check_initialization_order=1:strict_init_order=1:detect_stack_use_after_return=1:log_path=$reports/asan"
+export UBSAN_OPTIONS="halt_on_error=1:abort_on_error=1:print_stacktrace=1:log_path=$reports/ubsan:suppressions=$supp/ubsan.supp"
+export LSAN_OPTIONS="suppressions=$supp/lsan.supp:print_suppressions=0"
+test_start=$SECONDS
+status=0
+(cd build-asan && ctest --output-on-failure -j "$(nproc)") || status=1
+echo "sanitizer tests: $((SECONDS - test_start)) s"
+if [ -n "$(ls -A "$reports")" ]; then
+  for f in "$reports"/*; do
+    echo "== $f"
+    cat "$f"
+  done
+  echo "sanitizer reports: $(ls "$reports" | wc -l)"
+  status=1
+fi
+[ $status -eq 0 ] || exit $status
+
+# The decoder under valgrind (memcheck), the Release build of scripts/test.sh: every seed of fuzz/corpus
+# decoded to voxels (dcv decompress) and to a mesh (dcv mesh). The whole test suite under valgrind would
+# take hours; ASan covers it above.
+if [ -x build/tools/dcv/dcv ]; then
+  command -v valgrind >/dev/null || {
+    sudo=""
+    [ "$(id -u)" -eq 0 ] || sudo=sudo
+    DEBIAN_FRONTEND=noninteractive $sudo apt-get install -y -qq --no-install-recommends valgrind >/dev/null
+  }
+  valgrind_start=$SECONDS
+  out=build/valgrind
+  rm -rf "$out"
+  mkdir -p "$out"
+  for f in fuzz/corpus/*.dcv; do
+    n=$(basename "$f" .dcv)
+    for run in "decompress $f $out/$n.nrrd" "mesh $f $out/$n.vtu"; do
+      if ! valgrind -q --error-exitcode=99 --leak-check=full --errors-for-leak-kinds=definite \
+        build/tools/dcv/dcv $run >"$out/$n.log" 2>&1; then
+        echo "valgrind: dcv $run"
+        cat "$out/$n.log"
+        status=1
+      fi
+    done
+  done
+  echo "valgrind (dcv decompress and mesh on $(ls fuzz/corpus/*.dcv | wc -l) files): $((SECONDS - valgrind_start)) s"
+  [ $status -eq 0 ] || exit $status
+fi
+
+fuzz_seconds=${DCV_CI_FUZZ_SECONDS:-30}
+if [ "$fuzz_seconds" -gt 0 ]; then
+  fuzz_start=$SECONDS
+  unset ASAN_OPTIONS UBSAN_OPTIONS LSAN_OPTIONS
+  rm -rf build-fuzz/findings
+  DCV_FUZZ_JOBS="$(nproc)" bash scripts/fuzz.sh "$fuzz_seconds"
+  echo "fuzzing (build and run): $((SECONDS - fuzz_start)) s"
+fi
