@@ -107,10 +107,10 @@ QualityQuantizationStep(double peak, bool integer, double squaredError, double v
 /** What rate control did. */
 struct BudgetResult
 {
-  std::vector<uint8_t> payload;     // EncodePayload() of the engine's final approximation
-  std::size_t          firstCount;  // the point count the method ran with
-  unsigned             adjustments; // Resize() steps after it
-  double               step;        // the quantization step of the payload
+  std::vector<uint8_t> payload;            // EncodePayload() of the engine's final approximation
+  std::size_t          firstCount;         // the point count the method ran with
+  unsigned             adjustments;        // Resize() steps after it
+  double               step;               // the quantization step of the payload
   bool                 abandoned{ false }; // the points cannot beat the competitor (no payload)
 };
 

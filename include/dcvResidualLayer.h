@@ -89,11 +89,11 @@ ExpandLayer(const std::vector<uint8_t> & stored, const GridSize & grid, const st
 
 /** The bytes a residual layer's codestream takes in a file: compact when it can be, else whole. */
 DelaunayCompression_EXPORT std::size_t
-StoredLayerBytes(const std::vector<uint8_t> & codestream, const GridSize & grid);
+                           StoredLayerBytes(const std::vector<uint8_t> & codestream, const GridSize & grid);
 
 /** The bytes the compact form of an arrangement's codestream saves (when OpenJPEG writes it as expected). */
 DelaunayCompression_EXPORT std::size_t
-CompactLayerSaving(const GridSize & grid, Arrangement arrangement);
+                           CompactLayerSaving(const GridSize & grid, Arrangement arrangement);
 
 /** Bytes a residual layer adds to a file besides its codestream (its step and length). */
 constexpr std::size_t ResidualLayerFieldBytes = 12;
@@ -125,10 +125,10 @@ struct ResidualCoding
 };
 
 /** Codes the spline's residual against `voxels` (the original, laid out as the grid) in at most
- * `maximumBytes` bytes (the codestream as stored, StoredLayerBytes(), and, with an inter-slice wavelet, its levels), one coding at a time, so that the
- * caller chooses the next coding from the errors so far; keeps the coding that decodes closest, decoded as a decoder
- * will. The spline is rasterized once (a constant one is filled), on the encoder's threads; the residual samples are
- * computed at the first Try(). `voxels` must outlive it. */
+ * `maximumBytes` bytes (the codestream as stored, StoredLayerBytes(), and, with an inter-slice wavelet, its levels),
+ * one coding at a time, so that the caller chooses the next coding from the errors so far; keeps the coding that
+ * decodes closest, decoded as a decoder will. The spline is rasterized once (a constant one is filled), on the
+ * encoder's threads; the residual samples are computed at the first Try(). `voxels` must outlive it. */
 class DelaunayCompression_EXPORT ResidualSearch
 {
 public:

@@ -286,8 +286,8 @@ struct CornersCandidate
 /** Codes the residual layer over the corners. Done before the points, whose rate control stops as soon
  * as they cannot reach its error. */
 CornersCandidate
-TryCorners(const EncoderInput & input, const FileHeader & header, std::size_t fileBytes, double minimum,
-           double maximum, double peak)
+TryCorners(const EncoderInput & input, const FileHeader & header, std::size_t fileBytes, double minimum, double maximum,
+           double peak)
 {
   const PixelType  type = input.header.pixelType;
   const double     step = ResidualStep(peak, IsInteger(type));
@@ -322,8 +322,8 @@ TryCorners(const EncoderInput & input, const FileHeader & header, std::size_t fi
   ResidualSearch & search = *candidate.search;
   const int32_t    most = InterSliceLevels(input.header.size.z);
   const double     flat = search.Try({ Wavelet::Irreversible97, Arrangement::Mosaic, 0 });
-  const double     twoLevels = most > 0 ? search.Try({ Wavelet::Irreversible97, Arrangement::Mosaic, std::min(2, most) })
-                                        : std::numeric_limits<double>::infinity();
+  const double twoLevels = most > 0 ? search.Try({ Wavelet::Irreversible97, Arrangement::Mosaic, std::min(2, most) })
+                                    : std::numeric_limits<double>::infinity();
   if (twoLevels < flat && most > 2)
     search.Try({ Wavelet::Irreversible97, Arrangement::Mosaic, std::min(4, most) });
   else if (!(twoLevels < flat))
@@ -362,8 +362,11 @@ ChooseLayers(const EncoderInput & input, std::size_t fileBytes, bool pointsAband
   // code-blocks). The first that fits is kept; where it leaves more than 0.3% of the file, the best
   // candidate tries to fill it (2 more encodes and decodes at most).
   const std::size_t slack = std::max<std::size_t>(8, 3 * fileBytes / 1000);
-  auto keep = [&](ResidualChoice && c, Approximation && spline, std::vector<uint8_t> && splinePayload, double step,
-                  const FileHeader & h) {
+  auto              keep = [&](ResidualChoice &&       c,
+                  Approximation &&        spline,
+                  std::vector<uint8_t> && splinePayload,
+                  double                  step,
+                  const FileHeader &      h) {
     if (c.codestream.empty() || !(c.squaredError < bestError))
       return;
     bestError = c.squaredError;
@@ -379,8 +382,9 @@ ChooseLayers(const EncoderInput & input, std::size_t fileBytes, bool pointsAband
     r.approximation.residual = { c.step, std::move(c.samples) };
     payload = std::move(splinePayload);
   };
-  ResidualSearch * leader =
-    corners.search && (!points || corners.search->BestError() < points->BestError()) ? corners.search.get() : points.get();
+  ResidualSearch * leader = corners.search && (!points || corners.search->BestError() < points->BestError())
+                              ? corners.search.get()
+                              : points.get();
   if (leader && leader->BestError() < bestError && leader->Unused() > slack)
     leader->Fill(slack, 2);
   if (points)
@@ -443,8 +447,8 @@ Run(const EncoderInput & input, const EncoderOptions & o, bool coded, std::vecto
   r.quantizationStep = parameters.quantizationStep;
   RefinementEngine engine(input.voxels, grid, parameters);
   // The file is the payload plus a header that depends on the geometry and the metadata only.
-  const double fileBytes = std::floor(o.bitsPerVoxel * double(voxels) / 8.0);
-  const double headerBytes = double(SerializeFile(r.header, {}).size());
+  const double     fileBytes = std::floor(o.bitsPerVoxel * double(voxels) / 8.0);
+  const double     headerBytes = double(SerializeFile(r.header, {}).size());
   const bool       layers = coded && o.bitsPerVoxel > 0.0 && o.residualLayer;
   CornersCandidate corners;
   bool             pointsAbandoned = false;

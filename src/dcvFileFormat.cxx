@@ -289,7 +289,7 @@ SerializeFile(const FileHeader & h, const std::vector<uint8_t> & payload)
   // Every residual layer comes with a form byte: the layer's fields as short as they can be.
   std::vector<uint8_t> compact;
   const bool           compacted = residual && CompactLayer(h.residualLayer, h.size, compact);
-  const uint8_t        form = uint8_t((h.constantSpline ? FormConstant : 0) | (h.residualStep == 1.0 ? FormUnitStep : 0) |
+  const uint8_t form = uint8_t((h.constantSpline ? FormConstant : 0) | (h.residualStep == 1.0 ? FormUnitStep : 0) |
                                (compacted ? FormCompact : 0));
   const std::vector<uint8_t> & layer = compacted ? compact : h.residualLayer;
   w.Bytes(Magic, 4);
@@ -483,31 +483,31 @@ ParseFile(const std::vector<uint8_t> & bytes, const std::string & name, FileHead
   }
   else
   {
-  h.quantizationStep = r.F64("header");
-  if (!std::isfinite(h.quantizationOrigin) || !(h.quantizationStep > 0.0) || !std::isfinite(h.quantizationStep))
-  {
-    throw FormatError(name + ": invalid value quantization");
-  }
-  h.numberOfPoints = r.U32("header");
-  if (h.numberOfPoints < 8 || uint64_t(h.numberOfPoints) > h.size.NumberOfVoxels())
-  {
-    throw FormatError(name + ": absurd point count " + std::to_string(h.numberOfPoints) + " for " +
-                      std::to_string(h.size.NumberOfVoxels()) + " voxels");
-  }
-  const uint32_t length = r.U32("header");
-  if (length > r.Left())
-  {
-    throw FormatError(name + ": truncated (the payload is " + std::to_string(length) + " bytes, " +
-                      std::to_string(r.Left()) + " remain)");
-  }
-  if (uint64_t(h.numberOfPoints) > MaximumPointsPerPayloadByte * length)
-  {
-    throw FormatError(name + ": damaged (" + std::to_string(h.numberOfPoints) + " points cannot be coded in " +
-                      std::to_string(length) + " payload bytes, at most " +
-                      std::to_string(MaximumPointsPerPayloadByte * length) + ")");
-  }
-  payload.assign(bytes.begin() + std::ptrdiff_t(r.Position()), bytes.begin() + std::ptrdiff_t(r.Position() + length));
-  r.Skip(length);
+    h.quantizationStep = r.F64("header");
+    if (!std::isfinite(h.quantizationOrigin) || !(h.quantizationStep > 0.0) || !std::isfinite(h.quantizationStep))
+    {
+      throw FormatError(name + ": invalid value quantization");
+    }
+    h.numberOfPoints = r.U32("header");
+    if (h.numberOfPoints < 8 || uint64_t(h.numberOfPoints) > h.size.NumberOfVoxels())
+    {
+      throw FormatError(name + ": absurd point count " + std::to_string(h.numberOfPoints) + " for " +
+                        std::to_string(h.size.NumberOfVoxels()) + " voxels");
+    }
+    const uint32_t length = r.U32("header");
+    if (length > r.Left())
+    {
+      throw FormatError(name + ": truncated (the payload is " + std::to_string(length) + " bytes, " +
+                        std::to_string(r.Left()) + " remain)");
+    }
+    if (uint64_t(h.numberOfPoints) > MaximumPointsPerPayloadByte * length)
+    {
+      throw FormatError(name + ": damaged (" + std::to_string(h.numberOfPoints) + " points cannot be coded in " +
+                        std::to_string(length) + " payload bytes, at most " +
+                        std::to_string(MaximumPointsPerPayloadByte * length) + ")");
+    }
+    payload.assign(bytes.begin() + std::ptrdiff_t(r.Position()), bytes.begin() + std::ptrdiff_t(r.Position() + length));
+    r.Skip(length);
   }
   h.residualStep = 0.0;
   h.residualLevels = 0;

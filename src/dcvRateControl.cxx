@@ -75,8 +75,8 @@ ApproximateToBudget(RefinementEngine & engine, std::size_t payloadBytes, double 
   const double competitorError = competitor ? competitor() : std::numeric_limits<double>::infinity();
   if (std::isfinite(competitorError))
   {
-    const double refinedSize = double(
-      EncodePayload(engine.GetApproximation(), q0, engine.GetParameters().quantizationStep, true).size());
+    const double refinedSize =
+      double(EncodePayload(engine.GetApproximation(), q0, engine.GetParameters().quantizationStep, true).size());
     if (carried(engine.GetSquaredError(), refinedSize) / AbandonAfterRefinement > competitorError)
     {
       result.abandoned = true;
@@ -143,8 +143,8 @@ ApproximateToBudget(RefinementEngine & engine, std::size_t payloadBytes, double 
   if (stepMultiples.size() > 1)
   {
     // Step choice on the fitted mesh: each step's values are quantized again on it (from the
-    // least-squares solution, in modes with least squares); its squared error E at size S is carried to the budget T with the local law
-    // E ~ S^-b, b measured between the last two fitted states of different sizes (1 without them).
+    // least-squares solution, in modes with least squares); its squared error E at size S is carried to the budget T
+    // with the local law E ~ S^-b, b measured between the last two fitted states of different sizes (1 without them).
     // The best step is kept and the count fitted again. Measured on ../shared/data at 0.03125 and
     // 0.25 bpv, it picked the best of the three steps on 9 of 10 runs (a sweep of whole runs decided).
     double b = 1.0;

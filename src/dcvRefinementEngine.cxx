@@ -501,7 +501,7 @@ struct RefinementEngine::Impl
     {
       throw std::logic_error("RefinementEngine: live cells out of step with the tetrahedralization");
     }
-    auto       move = [&](auto & v) {
+    auto move = [&](auto & v) {
       for (std::size_t old = 0; old < renumbered.size(); ++old)
       {
         if (renumbered[old] != NoCell)
@@ -805,7 +805,7 @@ RefinementEngine::Decimate(std::size_t count)
     }
   }
   std::priority_queue<RemovalEntry> heap(std::less<RemovalEntry>(), std::move(entries));
-  std::vector<VertexId> neighbours;
+  std::vector<VertexId>             neighbours;
   for (std::size_t removed = 0; removed < count && !heap.empty();)
   {
     const RemovalEntry e = heap.top();

@@ -185,8 +185,8 @@ StripComments(std::vector<uint8_t> & codestream)
  * `planes`; the codestream (empty when OpenJPEG fails). A fresh image each time: OpenJPEG's encoder may
  * take over the image's sample buffers. */
 std::vector<uint8_t>
-EncodeOnce(const int32_t * planes, int components, int64_t width, int64_t height, int precision,
-           int resolutions, double ratio, Wavelet wavelet)
+EncodeOnce(const int32_t * planes, int components, int64_t width, int64_t height, int precision, int resolutions,
+           double ratio, Wavelet wavelet)
 {
   opj_image_cmptparm_t component{};
   component.dx = component.dy = 1;
@@ -262,13 +262,13 @@ namespace
 /** A coding's JPEG 2000 image, prepared once and then encoded at as many targets as asked. */
 struct LayerImage
 {
-  std::vector<int32_t>   owned;          // the transformed samples or the mosaic, when not the input itself
-  const int32_t *        data{ nullptr }; // `components` planes of width x height, one after the other
-  int                    components{ 1 };
-  int64_t                width{ 0 }, height{ 0 };
-  int                    precision{ 2 };
-  int                    resolutions{ 1 };
-  double                 raw{ 0.0 }; // bytes of the samples at that precision: what OpenJPEG's ratio refers to
+  std::vector<int32_t> owned;           // the transformed samples or the mosaic, when not the input itself
+  const int32_t *      data{ nullptr }; // `components` planes of width x height, one after the other
+  int                  components{ 1 };
+  int64_t              width{ 0 }, height{ 0 };
+  int                  precision{ 2 };
+  int                  resolutions{ 1 };
+  double               raw{ 0.0 }; // bytes of the samples at that precision: what OpenJPEG's ratio refers to
 };
 
 /** Prepares `input` (laid out as the grid) as a JPEG 2000 image; false when it cannot be one (more
@@ -334,8 +334,7 @@ PrepareImage(const std::vector<int32_t> & input, const GridSize & grid, Arrangem
       const int64_t x0 = int64_t(z % cols) * grid.x, y0 = int64_t(z / cols) * grid.y;
       for (int32_t y = 0; y < grid.y; ++y)
       {
-        std::copy_n(
-          samples.data() + grid.Offset(0, y, z), grid.x, image.owned.data() + (y0 + y) * image.width + x0);
+        std::copy_n(samples.data() + grid.Offset(0, y, z), grid.x, image.owned.data() + (y0 + y) * image.width + x0);
       }
     }
     image.data = image.owned.data();
@@ -510,9 +509,11 @@ struct CompactFields
 /** The 9/7 step of each band as OpenJPEG 2.5 writes it (docs/format.md, "Compact residual layer"): for
  * OpenJPEG's level index 0 to 5 (0 the finest), {p, mantissa} of LL, of HL and LH, of HH; the band's SPqcd is
  * ((precision - p) << 11) | mantissa. Measured from its codestreams at 4 to 16 bits and 1 to 6 resolutions. */
-constexpr int QcdSteps[6][3][2] = { { { 0, 0 }, { -2, 2003 }, { -2, 1890 } },     { { -1, 36 }, { -2, 5 }, { -2, 71 } },
-                                    { { -3, 1874 }, { -4, 1872 }, { -4, 1896 } }, { { -4, 1848 }, { -5, 1792 }, { -5, 1760 } },
-                                    { { -5, 1824 }, { -6, 1776 }, { -6, 1728 } }, { { -6, 1824 }, { 0, 0 }, { 0, 0 } } };
+constexpr int QcdSteps[6][3][2] = {
+  { { 0, 0 }, { -2, 2003 }, { -2, 1890 } },     { { -1, 36 }, { -2, 5 }, { -2, 71 } },
+  { { -3, 1874 }, { -4, 1872 }, { -4, 1896 } }, { { -4, 1848 }, { -5, 1792 }, { -5, 1760 } },
+  { { -5, 1824 }, { -6, 1776 }, { -6, 1728 } }, { { -6, 1824 }, { 0, 0 }, { 0, 0 } }
+};
 constexpr uint32_t MaximumImplicitQcdLevels = 5;
 
 /** The QCD marker segment OpenJPEG writes for these fields (levels at most MaximumImplicitQcdLevels). */
@@ -571,14 +572,14 @@ MainHeader(const CompactFields & f, const GridSize & grid)
   }
   PutU16(h, 0xff52); // COD
   PutU16(h, 12);
-  h.push_back(0);   // Scod: default precincts, no SOP, no EPH
-  h.push_back(0);   // LRCP
-  PutU16(h, 1);     // one quality layer
-  h.push_back(0);   // no component transform
+  h.push_back(0); // Scod: default precincts, no SOP, no EPH
+  h.push_back(0); // LRCP
+  PutU16(h, 1);   // one quality layer
+  h.push_back(0); // no component transform
   h.push_back(uint8_t(f.levels));
-  h.push_back(4);   // 64 x 64 code-blocks
+  h.push_back(4); // 64 x 64 code-blocks
   h.push_back(4);
-  h.push_back(0);   // code-block style
+  h.push_back(0); // code-block style
   h.push_back(f.reversible ? 1 : 0);
   return h;
 }
@@ -615,7 +616,7 @@ Expand(const uint8_t * stored, std::size_t n, const GridSize & grid)
     return {};
   c.reserve(c.size() + rest + 16);
   c.insert(c.end(), qcd, qcd + qcdBytes); // nothing when implicit
-  PutU16(c, 0xff90); // SOT: tile 0, its only tile-part
+  PutU16(c, 0xff90);                      // SOT: tile 0, its only tile-part
   PutU16(c, 10);
   PutU16(c, 0);
   PutU32(c, uint32_t(14 + data));
@@ -638,7 +639,7 @@ CompactLayer(const std::vector<uint8_t> & codestream, const GridSize & grid, std
   const std::size_t siz = 2 + GetU16(c.data() + 4);
   if (siz < 41 || 2 + siz + 14 > c.size())
     return false;
-  CompactFields f;
+  CompactFields  f;
   const uint32_t components = GetU16(c.data() + 40);
   if (components < 1 || 2 + 40 + 3 * std::size_t(components) > c.size())
     return false;
@@ -722,9 +723,8 @@ void
 RasterizeSpline(const Approximation & spline, T * out)
 {
   const bool constant =
-    !spline.values.empty() && std::all_of(spline.values.begin(), spline.values.end(), [&](double v) {
-      return v == spline.values.front();
-    });
+    !spline.values.empty() &&
+    std::all_of(spline.values.begin(), spline.values.end(), [&](double v) { return v == spline.values.front(); });
   if (constant && spline.residual.samples.empty())
   {
     std::fill_n(out, spline.grid.NumberOfVoxels(), ConvertValue<T>(spline.values.front()));
@@ -803,8 +803,8 @@ double
 ResidualSearch::Measure(std::vector<uint8_t> && codestream, const ResidualCoding & coding, double target)
 {
   const std::size_t stored = StoredLayerBytes(codestream, grid);
-  Residual residual{ best.step, DecodeResidualLayer(codestream, grid, "residual layer", coding.levels) };
-  double   error = 0.0;
+  Residual          residual{ best.step, DecodeResidualLayer(codestream, grid, "residual layer", coding.levels) };
+  double            error = 0.0;
   VisitPixelType(type, [&](auto pixel) {
     using T = decltype(pixel);
     const T * decoded = reinterpret_cast<const T *>(splineVoxels.data());
@@ -843,8 +843,8 @@ ResidualSearch::Try(const ResidualCoding & coding)
   if (!PrepareImage(samples, grid, coding.arrangement, coding.levels, image))
     return std::numeric_limits<double>::infinity();
   double               target = 0.0;
-  std::vector<uint8_t> codestream =
-    EncodeWithin(image, Limit(coding), coding.wavelet, target, &grid, CompactLayerSaving(grid, coding.arrangement), &backOff);
+  std::vector<uint8_t> codestream = EncodeWithin(
+    image, Limit(coding), coding.wavelet, target, &grid, CompactLayerSaving(grid, coding.arrangement), &backOff);
   if (codestream.empty())
     return std::numeric_limits<double>::infinity();
   return Measure(std::move(codestream), coding, target);
@@ -867,9 +867,10 @@ ResidualSearch::Fill(std::size_t slack, int attempts)
   double               fitTarget = bestTarget, fitSize = double(bestStored);
   double               overTarget = 0.0, overSize = 0.0;
   std::size_t          tried = 0;
-  for (int attempt = 0; attempt < attempts && double(limit) - fitSize > double(slack); ++attempt)
+  for (int attempt = 0; attempt<attempts && double(limit) - fitSize> double(slack); ++attempt)
   {
-    double target = overTarget > 0.0 ? overTarget - (overSize - double(limit)) - 1.0 : fitTarget + (double(limit) - fitSize);
+    double target =
+      overTarget > 0.0 ? overTarget - (overSize - double(limit)) - 1.0 : fitTarget + (double(limit) - fitSize);
     if (overTarget > 0.0 && !(target > fitTarget && target < overTarget))
       target = 0.5 * (fitTarget + overTarget);
     std::vector<uint8_t> codestream = EncodeAt(image, target, coding.wavelet);

@@ -268,7 +268,7 @@ Tetrahedralization::IncidentCells(VertexId id, std::vector<CellId> & out) const
 std::vector<Tetrahedralization::CellId>
 Tetrahedralization::CompactCellIds()
 {
-  Impl &                                    d = *m_Impl;
+  Impl &                                     d = *m_Impl;
   std::vector<std::pair<CellId, CellHandle>> live;
   live.reserve(d.dt.number_of_finite_cells());
   for (auto c = d.dt.finite_cells_begin(); c != d.dt.finite_cells_end(); ++c)

@@ -310,8 +310,7 @@ TEST(RefinementEngine, DecimationChoosesByTheFreshRemovalCosts)
       }
     }
     catch (const std::invalid_argument &) // removed, or never inserted
-    {
-    }
+    {}
   }
   ASSERT_EQ(live + 8, engine.GetNumberOfPoints());
   engine.Decimate(1);

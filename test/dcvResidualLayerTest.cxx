@@ -279,8 +279,8 @@ TEST(ResidualLayer, CompactFormGivesTheCodestreamBack)
   EXPECT_EQ(compacted, 4 * 2 * 2 * 3);
 
   // What is not OpenJPEG's layout stays whole, and a compact layer with bad fields is refused by name.
-  const GridSize g{ 40, 36, 6 };
-  auto           codestream = dcv::EncodeResidualLayer(Samples(g, 300, 5), g, 4000, dcv::Wavelet::Irreversible97);
+  const GridSize       g{ 40, 36, 6 };
+  auto                 codestream = dcv::EncodeResidualLayer(Samples(g, 300, 5), g, 4000, dcv::Wavelet::Irreversible97);
   std::vector<uint8_t> stored;
   ASSERT_TRUE(dcv::CompactLayer(codestream, g, stored));
   auto other = codestream;
@@ -289,10 +289,10 @@ TEST(ResidualLayer, CompactFormGivesTheCodestreamBack)
   EXPECT_TRUE(stored.empty());
   EXPECT_FALSE(dcv::CompactLayer(codestream, GridSize{ 40, 36, 7 }, stored)) << "another grid's mosaic";
   ASSERT_TRUE(dcv::CompactLayer(codestream, g, stored));
-  for (auto damage : std::vector<std::pair<std::size_t, uint8_t>>{ { 1, 7 },      // more columns than slices
-                                                                    { 2, 0x7f },   // precision 64
-                                                                    { 3, 33 },     // levels
-                                                                    { 3, 6 } })    // implicit QCD past 5 levels
+  for (auto damage : std::vector<std::pair<std::size_t, uint8_t>>{ { 1, 7 },    // more columns than slices
+                                                                   { 2, 0x7f }, // precision 64
+                                                                   { 3, 33 },   // levels
+                                                                   { 3, 6 } })  // implicit QCD past 5 levels
   {
     auto bad = stored;
     bad[damage.first] = damage.second;
@@ -392,8 +392,8 @@ TEST(ResidualLayer, FillStaysWithinTheBudgetAndDecodesNoWorse)
 // a form byte without a layer and a constant spline with a payload are refused.
 TEST(ResidualLayer, FormByteShortensTheContainer)
 {
-  const GridSize       g{ 40, 36, 6 };
-  dcv::FileHeader      h;
+  const GridSize  g{ 40, 36, 6 };
+  dcv::FileHeader h;
   h.size = g;
   h.numberOfPoints = 8;
   h.quantizationOrigin = 128.0;
@@ -416,7 +416,7 @@ TEST(ResidualLayer, FormByteShortensTheContainer)
   EXPECT_EQ(back.residualStep, 1.0);
   EXPECT_EQ(back.residualLayer, h.residualLayer);
   // The decoder's spline: the 8 corners at q0.
-  dcv::CompressedFile file{ "c", back, backPayload, constant.size() };
+  dcv::CompressedFile      file{ "c", back, backPayload, constant.size() };
   const dcv::Approximation a = dcv::Decode(file);
   EXPECT_EQ(a.points.size(), 8u);
   EXPECT_EQ(a.values, std::vector<double>(8, 128.0));
@@ -427,7 +427,8 @@ TEST(ResidualLayer, FormByteShortensTheContainer)
   EXPECT_EQ(dcv::SerializeFile(h, {}).size(), constant.size() + 8);
   auto whole = h;
   whole.residualLayer.back() = 0xd8;
-  EXPECT_EQ(dcv::SerializeFile(whole, {}).size(), dcv::SerializeFile(h, {}).size() + dcv::CompactLayerSaving(g, dcv::Arrangement::Mosaic));
+  EXPECT_EQ(dcv::SerializeFile(whole, {}).size(),
+            dcv::SerializeFile(h, {}).size() + dcv::CompactLayerSaving(g, dcv::Arrangement::Mosaic));
   dcv::ParseFile(dcv::SerializeFile(whole, {}), "w", back, backPayload);
   EXPECT_EQ(back.residualLayer, whole.residualLayer);
 

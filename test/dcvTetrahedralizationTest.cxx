@@ -172,8 +172,8 @@ TEST(Tetrahedralization, CompactedCellIdsAreDenseAndKeepTheirOrder)
   ASSERT_EQ(after.size(), before.size());
   for (std::size_t i = 0; i < after.size(); ++i)
   {
-    EXPECT_EQ(after[i].id, i);                                    // dense
-    EXPECT_EQ(after[i].vertices, before[i].vertices);              // same cells, same order
+    EXPECT_EQ(after[i].id, i);                        // dense
+    EXPECT_EQ(after[i].vertices, before[i].vertices); // same cells, same order
     EXPECT_EQ(renumbered[before[i].id], Tetrahedralization::CellId(i));
   }
   // The new ids work as hints and in further operations.

@@ -319,7 +319,7 @@ TEST(Encoder, AbandonsThePointsWhereTheResidualLayerWinsByFar)
   auto image = ImageType::New();
   image->SetRegions(itk::Size<3>{ { 48, 48, 32 } });
   image->Allocate();
-  std::mt19937 random(11);
+  std::mt19937         random(11);
   std::vector<uint8_t> slice(48 * 48);
   for (auto & v : slice)
     v = uint8_t(random() % 200);
