@@ -25,6 +25,8 @@
 #include <algorithm>
 #include <atomic>
 #include <cstdint>
+#include <functional>
+#include <limits>
 #include <thread>
 #include <type_traits>
 #include <vector>
@@ -79,6 +81,52 @@ Tetrahedralize(const std::vector<GridPoint> & points, const GridScale & scale = 
 DelaunayCompression_EXPORT void
 CheckPoints(const GridSize & grid, const std::vector<GridPoint> & points);
 
+namespace detail
+{
+/** Runs work() on `threads` threads (this one included) and waits for them. */
+template <typename F>
+void
+OnThreads(unsigned int threads, F && work)
+{
+  std::vector<std::thread> pool;
+  for (unsigned int i = 1; i < threads; ++i)
+  {
+    pool.emplace_back(std::ref(work));
+  }
+  work();
+  for (auto & t : pool)
+  {
+    t.join();
+  }
+}
+
+/** Calls f(z0, z1) for slabs of slices [z0, z1] that cover the grid, taken by the threads from a shared
+ * counter. */
+template <typename F>
+void
+ForEachSlab(const GridSize & grid, unsigned int threads, F && f)
+{
+  // Eight slabs a thread: even when some are slower (more cells, more residual).
+  const int32_t        thickness = std::max<int32_t>(1, grid.z / int32_t(8 * threads));
+  std::atomic<int32_t> next{ 0 };
+  OnThreads(threads, [&]() {
+    for (int32_t z0 = next.fetch_add(thickness); z0 < grid.z; z0 = next.fetch_add(thickness))
+    {
+      f(z0, std::min(grid.z - 1, z0 + thickness - 1));
+    }
+  });
+}
+
+template <typename T>
+void
+AddResidualToSlices(const Approximation & a, T * out, int32_t z0, int32_t z1)
+{
+  const uint64_t plane = uint64_t(a.grid.x) * uint64_t(a.grid.y);
+  for (uint64_t i = uint64_t(z0) * plane, end = (uint64_t(z1) + 1) * plane; i < end; ++i)
+    out[i] = AddResidual(out[i], a.residual, i);
+}
+} // namespace detail
+
 /** Rasterizes every tetrahedron into `out` (laid out as the grid; voxels no cell owns are left as
  * they are), then adds the residual layer if there is one. Cells own disjoint voxels, so `threads` threads (0: one per
  * core) share them without locks, and the result does not depend on the order. */
@@ -86,45 +134,61 @@ template <typename T>
 void
 Rasterize(const Approximation & a, T * out, unsigned int threads = 0)
 {
-  // Threads take chunks of consecutive (spatially close) cells from a shared counter, so that a
-  // thread that drew large cells does not hold the others up.
-  constexpr std::size_t    chunk = 512;
-  const std::size_t        n = a.tetrahedra.size();
-  std::atomic<std::size_t> next{ 0 };
-  auto                     work = [&a, out, n, &next]() {
-    for (std::size_t begin = next.fetch_add(chunk); begin < n; begin = next.fetch_add(chunk))
-    {
-      const std::size_t end = std::min(n, begin + chunk);
-      for (std::size_t c = begin; c < end; ++c)
-      {
-        const Tetrahedron & t = a.tetrahedra[c];
-        RasterizeTetrahedron(a.grid,
-                             { a.points[t[0]], a.points[t[1]], a.points[t[2]], a.points[t[3]] },
-                             { a.values[t[0]], a.values[t[1]], a.values[t[2]], a.values[t[3]] },
-                             out);
-      }
-    }
-  };
   if (threads == 0)
   {
     threads = std::max(1u, std::thread::hardware_concurrency());
   }
-  threads = unsigned(std::min<std::size_t>(threads, n / (4 * chunk) + 1)); // small meshes: one thread
-  std::vector<std::thread> pool;
-  for (unsigned int i = 1; i < threads; ++i)
+  constexpr std::size_t chunk = 512;
+  const std::size_t     n = a.tetrahedra.size();
+  if (n < 4 * chunk * threads && a.grid.NumberOfVoxels() < (uint64_t(1) << 18))
   {
-    pool.emplace_back(work);
+    threads = 1; // a small volume of few cells: not worth a thread
   }
-  work();
-  for (auto & t : pool)
+  const bool            residual = !a.residual.samples.empty();
+  auto                  cell = [&a, out](std::size_t c, int32_t z0, int32_t z1) {
+    const Tetrahedron & t = a.tetrahedra[c];
+    RasterizeTetrahedron(a.grid,
+                         { a.points[t[0]], a.points[t[1]], a.points[t[2]], a.points[t[3]] },
+                         { a.values[t[0]], a.values[t[1]], a.values[t[2]], a.values[t[3]] },
+                         out,
+                         z0,
+                         z1);
+  };
+  if (n >= 4 * chunk * threads || threads == 1)
   {
-    t.join();
+    // Threads take chunks of consecutive (spatially close) cells from a shared counter, so that a
+    // thread that drew large cells does not hold the others up.
+    std::atomic<std::size_t> next{ 0 };
+    detail::OnThreads(threads, [&]() {
+      for (std::size_t begin = next.fetch_add(chunk); begin < n; begin = next.fetch_add(chunk))
+      {
+        for (std::size_t c = begin, end = std::min(n, begin + chunk); c < end; ++c)
+          cell(c, 0, std::numeric_limits<int32_t>::max());
+      }
+    });
+    if (residual)
+      detail::ForEachSlab(a.grid, threads, [&](int32_t z0, int32_t z1) { detail::AddResidualToSlices(a, out, z0, z1); });
+    return;
   }
-  if (!a.residual.samples.empty())
+  // Few cells, each over many voxels (a coarse spline, or the corners under a residual layer): the
+  // threads share slabs of slices instead, each rasterizing the part of every cell in its slab, then
+  // adding the residual layer there while the slab is in cache.
+  std::vector<std::array<int32_t, 2>> extent(n);
+  for (std::size_t c = 0; c < n; ++c)
   {
-    for (uint64_t i = 0, n = a.grid.NumberOfVoxels(); i < n; ++i)
-      out[i] = AddResidual(out[i], a.residual, i);
+    const Tetrahedron & t = a.tetrahedra[c];
+    extent[c] = { std::min(std::min(a.points[t[0]][2], a.points[t[1]][2]), std::min(a.points[t[2]][2], a.points[t[3]][2])),
+                  std::max(std::max(a.points[t[0]][2], a.points[t[1]][2]), std::max(a.points[t[2]][2], a.points[t[3]][2])) };
   }
+  detail::ForEachSlab(a.grid, threads, [&](int32_t z0, int32_t z1) {
+    for (std::size_t c = 0; c < n; ++c)
+    {
+      if (extent[c][1] >= z0 && extent[c][0] <= z1)
+        cell(c, z0, z1);
+    }
+    if (residual)
+      detail::AddResidualToSlices(a, out, z0, z1);
+  });
 }
 
 /** Rasterizes only the voxels of the box [first, last] (inclusive grid coordinates) into `out`, laid

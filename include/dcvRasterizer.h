@@ -191,11 +191,13 @@ struct LinearFunction
   }
 };
 
-/** Calls f(y, z, x0, x1) for every row of voxels [x0, x1] (inclusive) owned by the tetrahedron.
- * Rows come in increasing z, then y. Flat tetrahedra own nothing. */
+/** Calls f(y, z, x0, x1) for every row of voxels [x0, x1] (inclusive) owned by the tetrahedron, in the
+ * slices [zFirst, zLast] only (each slice's rows are found on their own, so a slab gets exactly the rows
+ * the whole tetrahedron has there). Rows come in increasing z, then y. Flat tetrahedra own nothing. */
 template <typename TFunction>
 void
-ForEachSpan(const GridSize & grid, const std::array<GridPoint, 4> & p, TFunction && f)
+ForEachSpan(const GridSize & grid, const std::array<GridPoint, 4> & p, TFunction && f, int32_t zFirst = 0,
+            int32_t zLast = std::numeric_limits<int32_t>::max())
 {
   if (SignedVolume6(p) == 0)
   {
@@ -243,6 +245,8 @@ ForEachSpan(const GridSize & grid, const std::array<GridPoint, 4> & p, TFunction
     lo[c] = std::max(std::min(std::min(p[0][c], p[1][c]), std::min(p[2][c], p[3][c])), 0);
     hi[c] = std::min(std::max(std::max(p[0][c], p[1][c]), std::max(p[2][c], p[3][c])), (&grid.x)[c] - 1);
   }
+  lo[2] = std::max(lo[2], zFirst);
+  hi[2] = std::min(hi[2], zLast);
   for (int32_t z = lo[2]; z <= hi[2]; ++z)
   {
     // Rows that can meet the cross-section at this z: the y extent of the vertices on it and of the
@@ -338,7 +342,24 @@ template <typename T>
 inline T
 ConvertValue(double v)
 {
-  if constexpr (std::is_integral<T>::value)
+  if constexpr (std::is_integral<T>::value && sizeof(T) <= 4)
+  {
+    // The limits are integers, so comparing v + 0.5 with them equals comparing its floor; NaN goes low.
+    // Between them the floor is taken by truncation and a correction: std::floor is a library call
+    // per voxel without SSE 4.1, and this runs once per voxel decoded.
+    const double s = v + 0.5;
+    if (!(s >= double(std::numeric_limits<T>::lowest())))
+    {
+      return std::numeric_limits<T>::lowest();
+    }
+    if (s >= double(std::numeric_limits<T>::max()))
+    {
+      return std::numeric_limits<T>::max();
+    }
+    const int64_t t = int64_t(s);
+    return static_cast<T>(t - int64_t(double(t) > s));
+  }
+  else if constexpr (std::is_integral<T>::value)
   {
     const double r = std::floor(v + 0.5);
     if (!(r >= double(std::numeric_limits<T>::lowest())))
@@ -357,11 +378,13 @@ ConvertValue(double v)
   }
 }
 
-/** Writes the linear interpolation of one tetrahedron into a buffer laid out as the grid. */
+/** Writes the linear interpolation of one tetrahedron into a buffer laid out as the grid (in the slices
+ * [zFirst, zLast] only). */
 template <typename T>
 void
 RasterizeTetrahedron(const GridSize & grid, const std::array<GridPoint, 4> & points,
-                     const std::array<double, 4> & values, T * out)
+                     const std::array<double, 4> & values, T * out, int32_t zFirst = 0,
+                     int32_t zLast = std::numeric_limits<int32_t>::max())
 {
   const CanonicalTetrahedron t(points, values);
   const LinearFunction       L(t);
@@ -372,7 +395,7 @@ RasterizeTetrahedron(const GridSize & grid, const std::array<GridPoint, 4> & poi
     {
       row[x] = ConvertValue<T>(base + L.gx * double(x - L.origin[0]));
     }
-  });
+  }, zFirst, zLast);
 }
 
 } // namespace dcv

@@ -19,6 +19,7 @@
 #include "dcvParallel.h"
 
 #include <algorithm>
+#include <cmath>
 #include <limits>
 #include <stdexcept>
 #include <string>
@@ -27,26 +28,32 @@ namespace dcv
 {
 namespace
 {
-/** floor(a / b) for b > 0. */
+/** floor(a / 2^shift): an arithmetic shift (what gcc and clang do with signed integers, and C++20
+ * requires), not a division: the lifting below does one or two per sample. */
 int64_t
-FloorDiv(int64_t a, int64_t b)
+FloorShift(int64_t a, int shift)
 {
-  const int64_t q = a / b;
-  return (a % b != 0 && a < 0) ? q - 1 : q;
+  return a >> shift;
 }
 
 /** round(c w / 4096), halves up. */
 int64_t
 Weigh(int64_t c, int64_t w)
 {
-  return FloorDiv(2 * c * w + 4096, 8192);
+  return FloorShift(2 * c * w + 4096, 13);
 }
 
-/** round(c 4096 / w), halves up: the inverse of Weigh for w >= 4096. */
+/** round(c 4096 / w), halves up: the inverse of Weigh for w >= 4096. Exact: the quotient is taken in
+ * double and truncated (numerator and denominator are below 2^53, so that is at most one from the
+ * floor), then corrected with integers: several times faster than a 64-bit division per sample. */
 int64_t
 Unweigh(int64_t c, int64_t w)
 {
-  return FloorDiv(c * 8192 + w, 2 * w);
+  const int64_t num = c * 8192 + w, den = 2 * w;
+  int64_t       q = int64_t(double(num) / double(den));
+  const int64_t r = num - q * den;
+  q += int64_t(r >= den) - int64_t(r < 0);
+  return q;
 }
 
 /** Length of the low band after `level` levels of a signal of n samples: ceil(n / 2^level). */
@@ -85,7 +92,7 @@ Analyze(int64_t * rows, int64_t * scratch, int32_t m, int64_t width)
     const int64_t * right = x(2 * i + 2 < m ? 2 * i + 2 : 2 * i); // x[m] mirrors to x[m - 2]
     int64_t *       d = high + int64_t(i) * width;
     for (int64_t c = 0; c < width; ++c)
-      d[c] = odd[c] - FloorDiv(left[c] + right[c], 2);
+      d[c] = odd[c] - FloorShift(left[c] + right[c], 1);
   }
   for (int32_t i = 0; i < lows; ++i)
   {
@@ -95,7 +102,7 @@ Analyze(int64_t * rows, int64_t * scratch, int32_t m, int64_t width)
     const int64_t * after = high + int64_t(std::min(i, highs - 1)) * width;
     int64_t *       s = low + int64_t(i) * width;
     for (int64_t c = 0; c < width; ++c)
-      s[c] = even[c] + FloorDiv(before[c] + after[c] + 2, 4);
+      s[c] = even[c] + FloorShift(before[c] + after[c] + 2, 2);
   }
   std::copy_n(scratch, int64_t(m) * width, rows);
 }
@@ -115,7 +122,7 @@ Synthesize(int64_t * rows, int64_t * scratch, int32_t m, int64_t width)
     const int64_t * s = low + int64_t(i) * width;
     int64_t *       even = x(2 * i);
     for (int64_t c = 0; c < width; ++c)
-      even[c] = s[c] - FloorDiv(before[c] + after[c] + 2, 4);
+      even[c] = s[c] - FloorShift(before[c] + after[c] + 2, 2);
   }
   for (int32_t i = 0; i < highs; ++i)
   {
@@ -124,7 +131,7 @@ Synthesize(int64_t * rows, int64_t * scratch, int32_t m, int64_t width)
     const int64_t * d = high + int64_t(i) * width;
     int64_t *       odd = x(2 * i + 1);
     for (int64_t c = 0; c < width; ++c)
-      odd[c] = d[c] + FloorDiv(left[c] + right[c], 2);
+      odd[c] = d[c] + FloorShift(left[c] + right[c], 1);
   }
   std::copy_n(scratch, int64_t(m) * width, rows);
 }
@@ -149,7 +156,11 @@ ForEachRow(std::vector<int32_t> & samples, const GridSize & grid, F && f)
 {
   const int64_t width = grid.x;
   ParallelFor(std::size_t(grid.y), 1, [&](std::size_t y) {
-    std::vector<int64_t> rows(std::size_t(width * grid.z)), scratch(rows.size());
+    // One pair of buffers a thread, kept between rows: allocating them per row costs more in page
+    // faults than the lifting itself.
+    thread_local std::vector<int64_t> rows, scratch;
+    rows.resize(std::size_t(width * grid.z));
+    scratch.resize(rows.size());
     for (int32_t z = 0; z < grid.z; ++z)
       std::copy_n(samples.data() + grid.Offset(0, int32_t(y), z), width, rows.data() + int64_t(z) * width);
     f(rows.data(), scratch.data());

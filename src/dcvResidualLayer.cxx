@@ -459,15 +459,16 @@ DecodeResidualLayer(const std::vector<uint8_t> & codestream, const GridSize & gr
       throw fail("JPEG 2000 decoding gave no samples");
   }
   std::vector<int32_t> samples(grid.NumberOfVoxels());
-  for (int32_t z = 0; z < grid.z; ++z)
-  {
+  ParallelFor(std::size_t(grid.z), 1, [&](std::size_t slice) {
+    const int32_t     z = int32_t(slice);
     const OPJ_INT32 * data = image->comps[planes ? z : 0].data;
     const int64_t     x0 = planes ? 0 : int64_t(z % cols) * grid.x, y0 = planes ? 0 : int64_t(z / cols) * grid.y;
     for (int32_t y = 0; y < grid.y; ++y)
     {
       std::copy_n(data + (y0 + y) * width + x0, grid.x, samples.data() + grid.Offset(0, y, z));
     }
-  }
+  });
+  image.reset(); // its samples are copied: free them before the inverse wavelet's buffers
   InverseInterSlice(samples, grid, levels);
   return samples;
 }

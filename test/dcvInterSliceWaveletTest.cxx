@@ -190,3 +190,78 @@ TEST(InterSliceWavelet, TheContainerCarriesTheLevels)
   h.residualLevels = 5; // 9 slices take 4: 9, 5, 3, 2
   EXPECT_THROW(dcv::SerializeFile(h, payload), std::invalid_argument);
 }
+
+namespace
+{
+int64_t
+FloorDivide(int64_t a, int64_t b)
+{
+  const int64_t q = a / b;
+  return (a % b != 0 && a < 0) ? q - 1 : q;
+}
+
+/** docs/format.md's inverse of one column of z samples, written as plainly as the text says it (true
+ * divisions): what InverseInterSlice's faster arithmetic must equal. */
+std::vector<int64_t>
+PlainInverse(std::vector<int64_t> c, int32_t levels)
+{
+  const int32_t n = int32_t(c.size());
+  auto          low = [](int32_t m, int32_t l) { return int32_t((int64_t(m) + (int64_t(1) << l) - 1) >> l); };
+  for (int32_t i = 0; i < n; ++i)
+  {
+    int64_t w = dcv::LowBandWeight[std::size_t(levels - 1)];
+    if (i >= low(n, levels))
+    {
+      int32_t k = levels;
+      while (i >= low(n, k - 1))
+        --k;
+      w = dcv::HighBandWeight[std::size_t(k - 1)];
+    }
+    c[std::size_t(i)] = FloorDivide(c[std::size_t(i)] * 8192 + w, 2 * w);
+  }
+  for (int32_t l = levels - 1; l >= 0; --l)
+  {
+    const int32_t        m = low(n, l), lows = (m + 1) / 2, highs = m / 2;
+    std::vector<int64_t> x(std::size_t(m), 0);
+    auto                 h = [&](int32_t i) { return c[std::size_t(lows + std::clamp(i, 0, highs - 1))]; };
+    for (int32_t i = 0; i < lows; ++i)
+      x[std::size_t(2 * i)] = c[std::size_t(i)] - FloorDivide(h(i - 1) + h(i) + 2, 4);
+    for (int32_t i = 0; i < highs; ++i)
+      x[std::size_t(2 * i + 1)] =
+        c[std::size_t(lows + i)] + FloorDivide(x[std::size_t(2 * i)] + x[std::size_t(2 * i + 2 < m ? 2 * i + 2 : 2 * i)], 2);
+    std::copy(x.begin(), x.end(), c.begin());
+  }
+  for (int64_t & v : c)
+    v = std::clamp<int64_t>(v, std::numeric_limits<int32_t>::min() + 1, std::numeric_limits<int32_t>::max());
+  return c;
+}
+} // namespace
+
+TEST(InterSliceWavelet, InverseEqualsThePlainArithmeticOfTheFormat)
+{
+  // The inverse divides by shifts and by a corrected floating-point quotient: it must give what true
+  // floor divisions give, for any samples, extremes and negative values included.
+  for (const int32_t slices : { 2, 5, 16, 37 })
+  {
+    const GridSize       g{ 7, 3, slices };
+    std::vector<int32_t> samples = Random(g, 70000, unsigned(slices));
+    for (std::size_t i = 0; i < samples.size(); i += 11)
+      samples[i] = (i % 2) ? std::numeric_limits<int32_t>::max() : std::numeric_limits<int32_t>::min();
+    for (int32_t levels = 1; levels <= dcv::InterSliceLevels(slices); ++levels)
+    {
+      SCOPED_TRACE("slices " + std::to_string(slices) + ", levels " + std::to_string(levels));
+      std::vector<int32_t> fast = samples;
+      dcv::InverseInterSlice(fast, g, levels);
+      for (int32_t y = 0; y < g.y; ++y)
+        for (int32_t x = 0; x < g.x; ++x)
+        {
+          std::vector<int64_t> column;
+          for (int32_t z = 0; z < g.z; ++z)
+            column.push_back(samples[g.Offset(x, y, z)]);
+          const std::vector<int64_t> plain = PlainInverse(column, levels);
+          for (int32_t z = 0; z < g.z; ++z)
+            ASSERT_EQ(fast[g.Offset(x, y, z)], plain[std::size_t(z)]) << "x " << x << " y " << y << " z " << z;
+        }
+    }
+  }
+}

@@ -165,3 +165,32 @@ TEST(Rasterizer, FlatTetrahedronOwnsNothing)
 }
 
 } // namespace
+
+TEST(Rasterizer, ThreadsAndSlabsGiveTheSameVoxels)
+{
+  // Few cells over a large grid are shared out by slabs of slices, many cells by chunks of cells: both,
+  // with a residual layer, must give exactly what one thread gives.
+  const GridSize grid{ 70, 64, 61 }; // above the size where one thread does it all
+  for (const std::size_t n : { std::size_t(0), std::size_t(40), std::size_t(3000) })
+  {
+    SCOPED_TRACE(n);
+    Approximation a;
+    a.grid = grid;
+    a.points = test::RandomPoints(grid, n, 7);
+    for (std::size_t i = 0; i < a.points.size(); ++i)
+      a.values.push_back(double((i * 37) % 251) - 3.25);
+    a.tetrahedra = Tetrahedralize(a.points);
+    a.residual.step = 1.5;
+    a.residual.samples.resize(grid.NumberOfVoxels());
+    for (std::size_t i = 0; i < a.residual.samples.size(); ++i)
+      a.residual.samples[i] = int32_t(i % 13) - 6;
+    std::vector<int16_t> one(grid.NumberOfVoxels(), 0);
+    Rasterize(a, one.data(), 1);
+    for (const unsigned int threads : { 2u, 3u, 8u })
+    {
+      std::vector<int16_t> many(grid.NumberOfVoxels(), 0);
+      Rasterize(a, many.data(), threads);
+      ASSERT_EQ(many, one) << threads << " threads";
+    }
+  }
+}

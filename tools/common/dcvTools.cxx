@@ -522,27 +522,4 @@ ParseCompressedBytes(const std::vector<uint8_t> & bytes, const std::string & nam
   return file;
 }
 
-std::function<void(double)>
-TerminalProgress(const std::string & label, bool quiet)
-{
-  if (quiet || !::isatty(2))
-  {
-    return {};
-  }
-  auto last = std::make_shared<int>(-1);
-  return [label, last](double fraction) {
-    const int percent = int(fraction * 100.0);
-    if (percent != *last)
-    {
-      *last = percent;
-      std::fprintf(stderr, "\r%s %3d%%", label.c_str(), percent);
-      if (percent >= 100)
-      {
-        std::fprintf(stderr, "\r%*s\r", int(label.size()) + 6, "");
-      }
-      std::fflush(stderr);
-    }
-  };
-}
-
 } // namespace dcv::tools

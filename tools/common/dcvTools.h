@@ -20,7 +20,7 @@
 
 // The layer every program of the project shares (dcv, the benchmarks, and the DICOM, batch and Slicer
 // tools to come): user-facing errors, reading any volume ITK reads, dispatch on its pixel type,
-// atomic outputs, and progress on a terminal.
+// atomic outputs (the progress of a job: dcvProgress.h).
 #include "dcvCodec.h"
 #include "dcvFileFormat.h"
 #include "itkDCVImageInformation.h"
@@ -290,11 +290,6 @@ DecodeVolume(const CompressedFile & file, TFunction && f, const DecodeLimits & l
 {
   VisitPixelType(file.header.pixelType, [&](auto pixel) { f(DecodeImage<decltype(pixel)>(file, limits)); });
 }
-
-/** A progress function that shows "label NN%" on stderr when it is a terminal (and not `quiet`);
- * an empty function otherwise. */
-std::function<void(double)>
-TerminalProgress(const std::string & label, bool quiet);
 
 } // namespace dcv::tools
 

@@ -18,6 +18,7 @@
 // dcv: the command-line face of the DelaunayCompression module. The subcommands are the files
 // beside this one (dcvCompress.cxx, dcvDecompress.cxx, ...).
 #include "dcvCommand.h"
+#include "dcvProgress.h"
 
 #include "itkMacro.h"
 #include "itkMultiThreaderBase.h"
@@ -48,7 +49,7 @@ MethodOptions::Checked(const std::string & label) const
   {
     o.scale = { { scale[0], scale[1], scale[2] } };
   }
-  o.progress = TerminalProgress(label, quiet);
+  o.progress = ProgressOutput(label, quiet);
   if (o.threads > 0)
   {
     // ITK's filters before the encoder (the bilateral filter of I*) keep to the same number.
