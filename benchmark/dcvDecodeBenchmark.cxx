@@ -70,7 +70,7 @@ struct Stages
 void
 DecodeOnce(const std::string & path, const std::vector<uint8_t> & bytes, unsigned int threads, Stages & s)
 {
-  const auto      start = Clock::now();
+  const auto          start = Clock::now();
   dcv::CompressedFile file;
   file.name = path;
   file.size = bytes.size();

@@ -144,8 +144,8 @@ Rasterize(const Approximation & a, T * out, unsigned int threads = 0)
   {
     threads = 1; // a small volume of few cells: not worth a thread
   }
-  const bool            residual = !a.residual.samples.empty();
-  auto                  cell = [&a, out](std::size_t c, int32_t z0, int32_t z1) {
+  const bool residual = !a.residual.samples.empty();
+  auto       cell = [&a, out](std::size_t c, int32_t z0, int32_t z1) {
     const Tetrahedron & t = a.tetrahedra[c];
     RasterizeTetrahedron(a.grid,
                          { a.points[t[0]], a.points[t[1]], a.points[t[2]], a.points[t[3]] },
@@ -167,7 +167,8 @@ Rasterize(const Approximation & a, T * out, unsigned int threads = 0)
       }
     });
     if (residual)
-      detail::ForEachSlab(a.grid, threads, [&](int32_t z0, int32_t z1) { detail::AddResidualToSlices(a, out, z0, z1); });
+      detail::ForEachSlab(
+        a.grid, threads, [&](int32_t z0, int32_t z1) { detail::AddResidualToSlices(a, out, z0, z1); });
     return;
   }
   // Few cells, each over many voxels (a coarse spline, or the corners under a residual layer): the
@@ -177,8 +178,10 @@ Rasterize(const Approximation & a, T * out, unsigned int threads = 0)
   for (std::size_t c = 0; c < n; ++c)
   {
     const Tetrahedron & t = a.tetrahedra[c];
-    extent[c] = { std::min(std::min(a.points[t[0]][2], a.points[t[1]][2]), std::min(a.points[t[2]][2], a.points[t[3]][2])),
-                  std::max(std::max(a.points[t[0]][2], a.points[t[1]][2]), std::max(a.points[t[2]][2], a.points[t[3]][2])) };
+    extent[c] = {
+      std::min(std::min(a.points[t[0]][2], a.points[t[1]][2]), std::min(a.points[t[2]][2], a.points[t[3]][2])),
+      std::max(std::max(a.points[t[0]][2], a.points[t[1]][2]), std::max(a.points[t[2]][2], a.points[t[3]][2]))
+    };
   }
   detail::ForEachSlab(a.grid, threads, [&](int32_t z0, int32_t z1) {
     for (std::size_t c = 0; c < n; ++c)

@@ -68,6 +68,9 @@ struct EncoderOptions
   unsigned int threads{ 0 };
   /** Called with the fraction done, in [0, 1]; it may throw to abort. */
   std::function<void(double)> progress;
+  /** The most memory encoding may need (bytes, EncodingMemory(); 0: no limit): a larger job is refused
+   * before the volume is copied. Default: half of the physical memory (DefaultMaximumMemory()). */
+  uint64_t maximumMemory{ DefaultMaximumMemory() };
 };
 
 /** Checks the options; throws std::invalid_argument naming the first one out of range. */
@@ -82,11 +85,29 @@ struct EncoderInput;
 /** CheckOptions(options), then what depends on the volume (its voxels only when input.voxels is set):
  * finite voxels, BitsPerVoxel at most the
  * pixel type's bits and within MaximumPayloadBytes, NumberOfPoints at most the voxels (when it is the
- * target), and a QuantizationStep whose lattice spans the values within MaximumQuantizationIndex / 2
- * steps (MaximumPayloadBytes, MaximumQuantizationIndex: dcvFileFormat.h, dcvCodec.h). Throws
- * std::invalid_argument. */
+ * target), the memory the job needs within MaximumMemory (CheckEncodingMemory), and a QuantizationStep
+ * whose lattice spans the values within MaximumQuantizationIndex / 2 steps (MaximumPayloadBytes,
+ * MaximumQuantizationIndex: dcvFileFormat.h, dcvCodec.h). Throws std::invalid_argument. */
 DelaunayCompression_EXPORT void
 CheckOptions(const EncoderOptions & options, const EncoderInput & input);
+
+/** The encoder's memory model, from above (docs/profile.md, "Memory model"): per voxel the input as
+ * floats, I*, the engine's per-voxel state and, with a bit budget and the residual layer, the layer's
+ * search buffers; per point the tetrahedralization, the least squares and the heaps. */
+constexpr double EncodingBytesPerVoxel = 24.0;
+constexpr double EncodingBytesPerVoxelWithResidualLayer = 48.0;
+constexpr double EncodingBytesPerPoint = 7680.0;
+
+/** What encoding a grid with these options may need at most (the memory model above). The points: the
+ * target NumberOfPoints, or with BitsPerVoxel as many as the budget holds at 8 bits a point; a PSNR
+ * target's count is not known beforehand, NumberOfPoints stands for it. */
+DelaunayCompression_EXPORT uint64_t
+EncodingMemory(const GridSize & grid, const EncoderOptions & options);
+
+/** Throws std::invalid_argument (what the job would need, and the limit) when EncodingMemory() exceeds
+ * options.maximumMemory. */
+DelaunayCompression_EXPORT void
+CheckEncodingMemory(const GridSize & grid, const EncoderOptions & options);
 
 /** Checks that each axis has 2 to MaximumGridExtent voxels; throws std::invalid_argument. */
 DelaunayCompression_EXPORT void

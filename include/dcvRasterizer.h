@@ -388,14 +388,19 @@ RasterizeTetrahedron(const GridSize & grid, const std::array<GridPoint, 4> & poi
 {
   const CanonicalTetrahedron t(points, values);
   const LinearFunction       L(t);
-  ForEachSpan(grid, t.p, [&](int32_t y, int32_t z, int32_t x0, int32_t x1) {
-    const double base = L.RowBase(y, z);
-    T *          row = out + grid.Offset(0, y, z);
-    for (int32_t x = x0; x <= x1; ++x)
-    {
-      row[x] = ConvertValue<T>(base + L.gx * double(x - L.origin[0]));
-    }
-  }, zFirst, zLast);
+  ForEachSpan(
+    grid,
+    t.p,
+    [&](int32_t y, int32_t z, int32_t x0, int32_t x1) {
+      const double base = L.RowBase(y, z);
+      T *          row = out + grid.Offset(0, y, z);
+      for (int32_t x = x0; x <= x1; ++x)
+      {
+        row[x] = ConvertValue<T>(base + L.gx * double(x - L.origin[0]));
+      }
+    },
+    zFirst,
+    zLast);
 }
 
 } // namespace dcv

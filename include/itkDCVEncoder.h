@@ -50,13 +50,14 @@ public:
     const auto region = image->GetBufferedRegion();
     CopyDCVGeometry(image, region, m_Input.header);
     dcv::CheckGrid(m_Input.header.size);
+    m_Input.header.pixelType = dcv::PixelTypeOf<PixelType>();
+    dcv::CheckEncodingMemory(m_Input.header.size, options); // before the volume is copied
     m_Voxels.reserve(region.GetNumberOfPixels());
     for (ImageRegionConstIterator<TImage> it(image, region); !it.IsAtEnd(); ++it)
     {
       m_Voxels.push_back(static_cast<float>(it.Get()));
     }
     m_Input.voxels = m_Voxels.data();
-    m_Input.header.pixelType = dcv::PixelTypeOf<PixelType>();
     dcv::CheckOptions(options, m_Input); // what depends on the voxels, before I* is made
     if (dcv::UsesSmoothedImage(options.mode))
     {

@@ -105,6 +105,31 @@ CheckOptions(const EncoderOptions & o)
   }
 }
 
+uint64_t
+EncodingMemory(const GridSize & grid, const EncoderOptions & o)
+{
+  const double voxels = double(grid.NumberOfVoxels());
+  const bool   residual = o.bitsPerVoxel > 0.0 && o.residualLayer;
+  const double points = o.bitsPerVoxel > 0.0 ? std::max(8.0, std::min(voxels, o.bitsPerVoxel * voxels / 8.0))
+                                             : std::min(voxels, double(o.numberOfPoints));
+  const double bytes = voxels * (residual ? EncodingBytesPerVoxelWithResidualLayer : EncodingBytesPerVoxel) +
+                       points * EncodingBytesPerPoint;
+  return bytes < 1.8e19 ? uint64_t(bytes) : std::numeric_limits<uint64_t>::max();
+}
+
+void
+CheckEncodingMemory(const GridSize & grid, const EncoderOptions & o)
+{
+  const uint64_t needed = EncodingMemory(grid, o);
+  if (o.maximumMemory > 0 && needed > o.maximumMemory)
+  {
+    throw std::invalid_argument(
+      "encoding " + std::to_string(grid.x) + "x" + std::to_string(grid.y) + "x" + std::to_string(grid.z) +
+      " voxels with these options may need " + FormatByteCount(needed) + ", more than the limit of " +
+      FormatByteCount(o.maximumMemory) + " (MaximumMemory, --max-memory; fewer points or a smaller budget need less)");
+  }
+}
+
 void
 CheckOptions(const EncoderOptions & o, const EncoderInput & input)
 {
@@ -138,6 +163,7 @@ CheckOptions(const EncoderOptions & o, const EncoderInput & input)
     throw std::invalid_argument("NumberOfPoints (--points) must be at most the number of voxels, " +
                                 std::to_string(voxels) + ", got " + std::to_string(o.numberOfPoints));
   }
+  CheckEncodingMemory(input.header.size, o); // after the targets' own bounds: their messages say more
   if (input.voxels != nullptr && o.quantizationStep > 0.0)
   {
     // The value coder takes lattice indices k = (v - q0) / q below 2^30 (EncodePayload), q0 the minimum;
@@ -416,6 +442,7 @@ Run(const EncoderInput & input, const EncoderOptions & o, bool coded, std::vecto
     throw std::invalid_argument("NumberOfPoints (--points) must be at most the number of voxels, " +
                                 std::to_string(voxels) + ", got " + std::to_string(o.numberOfPoints));
   }
+  CheckEncodingMemory(input.header.size, o); // after the targets' own bounds: their messages say more
   const auto range = std::minmax_element(input.voxels, input.voxels + voxels);
   const bool integer = IsInteger(input.header.pixelType);
 

@@ -32,7 +32,8 @@ TEST(Progress, TerminalShowsABarThePercentageAndTheTimeLeft)
   // A quarter done in 10 s: 30 s left.
   EXPECT_EQ(m.Update(0.25, 10.0), "\rcompressing [#######" + std::string(23, ' ') + "] 25%, 0:30 left\033[K");
   EXPECT_EQ(m.Update(0.25, 10.0), "") << "nothing changed: nothing is redrawn";
-  EXPECT_EQ(m.Update(0.5, 3000.0), "\rcompressing [" + std::string(15, '#') + std::string(15, ' ') + "] 50%, 50:00 left\033[K");
+  EXPECT_EQ(m.Update(0.5, 3000.0),
+            "\rcompressing [" + std::string(15, '#') + std::string(15, ' ') + "] 50%, 50:00 left\033[K");
   EXPECT_EQ(m.Update(1.0, 6000.0), "\r\033[K") << "the line is cleared for the summary";
   EXPECT_EQ(m.Update(1.0, 6001.0), "");
 }

@@ -49,7 +49,7 @@ public:
 private:
   std::string m_Label;
   bool        m_Terminal;
-  std::string m_Last;      // the last line drawn on the terminal
+  std::string m_Last;       // the last line drawn on the terminal
   int         m_Tenth{ 0 }; // the last tenth reported in plain lines
   bool        m_Cleared{ false };
 };

@@ -142,14 +142,15 @@ FormatPSNR(double psnr);
 void
 DefaultPointsForVolume(EncoderOptions & options, const CLI::Option * points, uint64_t voxels);
 
-/** Declares INPUT, the method's options (--resample included), --force and --quiet on a command. */
+/** Declares INPUT, the method's options (--resample included), --max-memory, --force and --quiet on a
+ * command. */
 void
 AddMethodOptions(CLI::App & command, std::string & input, MethodOptions & o);
 
-/** Declares --max-memory SIZE (bytes, or with a suffix K, M, G, T: powers of 1024; 0: no limit) on a
- * command that decodes: what `limits` allow the decoding of a file (default: half of the physical memory). */
+/** Declares --max-memory SIZE (bytes, or with a suffix K, M, G, T: powers of 1024; 0: no limit): the most
+ * memory the command's `work` ("decoding", "encoding") may need (default: half of the physical memory). */
 void
-AddMaximumMemoryOption(CLI::App & command, DecodeLimits & limits);
+AddMaximumMemoryOption(CLI::App & command, uint64_t & maximumMemory, const std::string & work);
 
 /** The encoder's target options of compress and batch (--bpv, --psnr, --points, mutually exclusive),
  * --step and --no-residual-layer; returns the three targets' options, so callers can ask which was given. */

@@ -81,7 +81,7 @@ const RegisterCommand decompress{
       command.add_option("INPUT", d->input, "Input .dcv file")->required();
       command.add_option("OUTPUT", d->output, "Output volume (format from its extension)")->required();
       command.add_flag("--force,-f", d->force, "Overwrite OUTPUT if it exists");
-      AddMaximumMemoryOption(command, d->limits);
+      AddMaximumMemoryOption(command, d->limits.maximumMemory, "decoding");
       command.add_flag("--dicom",
                        d->dicom,
                        "OUTPUT is a directory: write a DICOM series (one file per slice, a derived lossy series "

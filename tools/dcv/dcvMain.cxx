@@ -112,17 +112,18 @@ AddMethodOptions(CLI::App & command, std::string & input, MethodOptions & o)
     .add_option("--threads", o.encoder.threads, "Threads to use (0: one per core); the file does not depend on it")
     ->check(CLI::Range(0u, 1024u))
     ->capture_default_str();
+  AddMaximumMemoryOption(command, o.encoder.maximumMemory, "encoding");
   command.add_flag("--force,-f", o.force, "Overwrite OUTPUT if it exists");
   command.add_flag("--quiet,-q", o.quiet, "Print nothing but errors");
 }
 
 void
-AddMaximumMemoryOption(CLI::App & command, DecodeLimits & limits)
+AddMaximumMemoryOption(CLI::App & command, uint64_t & maximumMemory, const std::string & work)
 {
   command
     .add_option_function<std::string>(
       "--max-memory",
-      [&limits](const std::string & text) {
+      [&maximumMemory](const std::string & text) {
         // A number of bytes with an optional binary suffix: 512M, 8G, 1.5T.
         std::size_t  end = 0;
         double       value = -1.0;
@@ -155,10 +156,10 @@ AddMaximumMemoryOption(CLI::App & command, DecodeLimits & limits)
           throw CLI::ValidationError("--max-memory",
                                      "must be a size in bytes (e.g. 512M, 8G; 0: no limit), got " + text);
         }
-        limits.maximumMemory = uint64_t(value * factor);
+        maximumMemory = uint64_t(value * factor);
       },
-      "The most memory decoding may need (bytes, or K, M, G, T; 0: no limit): a file that needs more is refused "
-      "before anything is allocated. Default: half of the physical memory, " +
+      "The most memory " + work + " may need (bytes, or K, M, G, T; 0: no limit): a job that needs more is " +
+        "refused before anything is allocated. Default: half of the physical memory, " +
         FormatByteCount(DefaultMaximumMemory()))
     ->type_name("SIZE");
 }

@@ -127,7 +127,7 @@ const RegisterCommand mesh{
                     "Output mesh: .vtu (VTK XML UnstructuredGrid, zlib-compressed) or .vtk (VTK legacy, binary)")
         ->required();
       command.add_flag("--force,-f", m->force, "Overwrite OUTPUT if it exists");
-      AddMaximumMemoryOption(command, m->limits);
+      AddMaximumMemoryOption(command, m->limits.maximumMemory, "decoding");
       command.add_flag("--quiet,-q", m->quiet, "Print nothing but errors");
       command.footer("The mesh is the spline the points define: a residual layer (JPEG 2000 of what the spline "
                      "leaves), if the file has one, is voxels and not part of it; `dcv decompress` adds it.\n");
