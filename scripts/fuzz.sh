@@ -62,7 +62,9 @@ done
 itk_flags=(-std=c++17 -O1 -g -fno-omit-frame-pointer -fsanitize=address,undefined -fno-sanitize-recover=undefined
   -Iinclude -I"$out/include" -Ifuzz -isystem /usr/include/ITK-5.2 -isystem /usr/include/eigen3 -DNDEBUG)
 itk_objects=()
-for s in src/itkDCVImageIO.cxx src/itkDCVMeshIO.cxx fuzz/dcvIOFuzzShim.cxx; do
+# itkDCVEncoder*.cxx: the encoder DCVImageIO::Write calls (itkDCVEncoder.h declares it extern).
+for s in src/itkDCVImageIO.cxx src/itkDCVMeshIO.cxx src/itkDCVEncoderIntegers.cxx src/itkDCVEncoderReals.cxx \
+  fuzz/dcvIOFuzzShim.cxx; do
   o="$out/obj/$(basename "$s" .cxx).gcc.o"
   compile "$s" "$o" g++ "${itk_flags[@]}"
   itk_objects+=("$o")
