@@ -202,6 +202,26 @@ DCVApproximate(const TImage * image, const dcv::EncoderOptions & options)
   return DCVEncoderDetail::Run(image, options, &dcv::Approximate);
 }
 
+/** DCVEncode and DCVApproximate of an Image<T, 3>: the explicit instantiation declarations (EXTERN:
+ * extern) or definitions (EXTERN empty) for one pixel type T. */
+#define DCV_ENCODER_INSTANTIATION(EXTERN, T)                                                                           \
+  EXTERN template DelaunayCompression_EXPORT dcv::EncoderResult DCVEncode(const Image<T, 3> *,                         \
+                                                                          const dcv::EncoderOptions &);                \
+  EXTERN template DelaunayCompression_EXPORT dcv::EncoderResult DCVApproximate(const Image<T, 3> *,                    \
+                                                                               const dcv::EncoderOptions &)
+
+// The encoder's ITK pipeline (the bilateral filter of I* above all) for the .dcv pixel types is compiled
+// once, in the library (src/itkDCVEncoderIntegers.cxx, src/itkDCVEncoderReals.cxx), instead of again in
+// every program and test that encodes.
+DCV_ENCODER_INSTANTIATION(extern, uint8_t);
+DCV_ENCODER_INSTANTIATION(extern, int8_t);
+DCV_ENCODER_INSTANTIATION(extern, uint16_t);
+DCV_ENCODER_INSTANTIATION(extern, int16_t);
+DCV_ENCODER_INSTANTIATION(extern, uint32_t);
+DCV_ENCODER_INSTANTIATION(extern, int32_t);
+DCV_ENCODER_INSTANTIATION(extern, float);
+DCV_ENCODER_INSTANTIATION(extern, double);
+
 } // namespace itk
 
 #endif

@@ -9,7 +9,7 @@
 # (build-fuzz/corpus/TARGET, kept between runs) with fuzz/corpus/, and prints libFuzzer's final figures.
 # Inputs that crash, hang or exhaust memory are written to build-fuzz/findings/ and the exit status is 1;
 # each becomes a regression test (test/fuzz-findings/, the FuzzCorpus test). DCV_FUZZ_JOBS (default 1):
-# targets fuzzed at once.
+# targets fuzzed at once (the build runs $(nproc) compilations at a time).
 set -euo pipefail
 cd "$(dirname "$0")/.."
 bash scripts/setup.sh --fuzz
@@ -47,14 +47,24 @@ compile() { # SOURCE OBJECT COMPILER FLAGS...: when the source or a header is ne
     "$@" -c "$source" -o "$object"
   fi
 }
+# The compilations run $(nproc) at a time.
+compiling=()
+compile_later() { # as compile, in the background
+  if [ ${#compiling[@]} -ge "$(nproc)" ]; then
+    wait "${compiling[0]}"
+    compiling=("${compiling[@]:1}")
+  fi
+  compile "$@" &
+  compiling+=($!)
+}
 objects=()
 for s in "${core[@]}"; do
-  compile "src/$s.cxx" "$out/obj/$s.o" clang++ "${flags[@]}" -fsanitize=fuzzer-no-link
+  compile_later "src/$s.cxx" "$out/obj/$s.o" clang++ "${flags[@]}" -fsanitize=fuzzer-no-link
   objects+=("$out/obj/$s.o")
 done
 encoder_objects=()
 for s in "${encoder[@]}"; do
-  compile "src/$s.cxx" "$out/obj/$s.o" clang++ "${flags[@]}" -fsanitize=fuzzer-no-link
+  compile_later "src/$s.cxx" "$out/obj/$s.o" clang++ "${flags[@]}" -fsanitize=fuzzer-no-link
   encoder_objects+=("$out/obj/$s.o")
 done
 # The ITK side, by g++ with ASan and UBSan (its instrumentation calls the ASan and UBSan runtime that clang
@@ -62,11 +72,14 @@ done
 itk_flags=(-std=c++17 -O1 -g -fno-omit-frame-pointer -fsanitize=address,undefined -fno-sanitize-recover=undefined
   -Iinclude -I"$out/include" -Ifuzz -isystem /usr/include/ITK-5.2 -isystem /usr/include/eigen3 -DNDEBUG)
 itk_objects=()
-for s in src/itkDCVImageIO.cxx src/itkDCVMeshIO.cxx fuzz/dcvIOFuzzShim.cxx; do
+# itkDCVEncoder*.cxx: the encoder DCVImageIO::Write calls (itkDCVEncoder.h declares it extern).
+for s in src/itkDCVImageIO.cxx src/itkDCVMeshIO.cxx src/itkDCVEncoderIntegers.cxx src/itkDCVEncoderReals.cxx \
+  fuzz/dcvIOFuzzShim.cxx; do
   o="$out/obj/$(basename "$s" .cxx).gcc.o"
-  compile "$s" "$o" g++ "${itk_flags[@]}"
+  compile_later "$s" "$o" g++ "${itk_flags[@]}"
   itk_objects+=("$o")
 done
+for p in "${compiling[@]}"; do wait "$p"; done
 libs=(-lz -lopenjp2 -ltbb -lgmp -lmpfr -pthread)
 itk_libs=(-L/usr/lib -lITKIOMeshBase-5.2 -lITKIOImageBase-5.2 -lITKCommon-5.2 -litkvnl_algo-5.2 -litkvnl-5.2
   -litksys-5.2 -Wl,-rpath,/usr/lib)

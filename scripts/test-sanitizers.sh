@@ -1,12 +1,13 @@
 #!/usr/bin/env bash
-# CI's second build: the whole test suite built with AddressSanitizer (and LeakSanitizer) and
-# UndefinedBehaviorSanitizer (gcc; -O1, line tables, any undefined behaviour fatal) in build-asan/, run by
-# ctest; the decoder of build/ (scripts/test.sh) under valgrind on the fuzz seeds; then a short libFuzzer
-# run of every fuzz target (scripts/fuzz.sh, DCV_CI_FUZZ_SECONDS per target,
-# default 30; 0 skips it). Fails on any sanitizer report, in the tests or in the programs they run, even
-# where a test expected its program to fail: every report goes to build-asan/sanitizer-reports/, which must
-# stay empty. Not built: the benchmarks (no test runs them); the wrapping check compiles two pixel types
-# instead of ten (the normal build compiles them all; here its test only runs what it creates).
+# CI's second build (.ci/run, after scripts/test.sh): the whole test suite built with AddressSanitizer (and
+# LeakSanitizer) and UndefinedBehaviorSanitizer (gcc; line tables, any undefined behaviour fatal; the library
+# and tools/common at -O1, the programs and tests, ITK glue, at -O0: they compile faster) in build-asan/, run
+# by ctest; the decoder of build/ (scripts/test.sh) under valgrind on the fuzz seeds; then a short libFuzzer
+# run of every fuzz target (scripts/fuzz.sh, DCV_CI_FUZZ_SECONDS per target, default 30; 0 skips it). Fails
+# on any sanitizer report, in the tests or in the programs they run, even where a test expected its program
+# to fail: every report goes to build-asan/sanitizer-reports/, which must stay empty. Not built: the
+# benchmarks (no test runs them); the wrapping check compiles two pixel types instead of ten (the normal
+# build compiles them all; here its test only runs what it creates).
 set -euo pipefail
 cd "$(dirname "$0")/.."
 bash scripts/setup.sh
@@ -14,7 +15,8 @@ start=$SECONDS
 
 cmake -S . -B build-asan -G Ninja -DDCV_SANITIZE=ON -DCMAKE_BUILD_TYPE=RelWithDebInfo \
   -DCMAKE_CXX_FLAGS_RELWITHDEBINFO="-O1 -g1 -DNDEBUG" -DCMAKE_C_FLAGS_RELWITHDEBINFO="-O1 -g1 -DNDEBUG" \
-  -DDelaunayCompression_BUILD_BENCHMARKS=OFF -DDelaunayCompression_WRAP_CHECK_TYPES="UC;F" >/dev/null
+  -DDelaunayCompression_BUILD_BENCHMARKS=OFF -DDelaunayCompression_WRAP_CHECK_TYPES="UC;F" \
+  -DDelaunayCompression_PROGRAM_COMPILE_OPTIONS=-O0 >/dev/null
 cmake --build build-asan
 echo "sanitizer build: $((SECONDS - start)) s"
 
@@ -54,17 +56,26 @@ if [ -x build/tools/dcv/dcv ]; then
   out=build/valgrind
   rm -rf "$out"
   mkdir -p "$out"
+  memcheck() { # LOG ARGUMENTS...: dcv ARGUMENTS under valgrind, its output in LOG; false on an error
+    local log=$1
+    shift
+    valgrind -q --error-exitcode=99 --leak-check=full --errors-for-leak-kinds=definite build/tools/dcv/dcv "$@" \
+      >"$log" 2>&1 || { echo "valgrind: dcv $*" && cat "$log" && return 1; }
+  }
+  # Each run is one single-threaded process, most of it valgrind starting ITK: $(nproc) at a time.
+  pids=()
   for f in fuzz/corpus/*.dcv; do
     n=$(basename "$f" .dcv)
     for run in "decompress $f $out/$n.nrrd" "mesh $f $out/$n.vtu"; do
-      if ! valgrind -q --error-exitcode=99 --leak-check=full --errors-for-leak-kinds=definite \
-        build/tools/dcv/dcv $run >"$out/$n.log" 2>&1; then
-        echo "valgrind: dcv $run"
-        cat "$out/$n.log"
-        status=1
+      if [ ${#pids[@]} -ge "$(nproc)" ]; then
+        wait "${pids[0]}" || status=1
+        pids=("${pids[@]:1}")
       fi
+      memcheck "$out/$n-${run%% *}.log" $run &
+      pids+=($!)
     done
   done
+  for p in "${pids[@]}"; do wait "$p" || status=1; done
   echo "valgrind (dcv decompress and mesh on $(ls fuzz/corpus/*.dcv | wc -l) files): $((SECONDS - valgrind_start)) s"
   [ $status -eq 0 ] || exit $status
 fi

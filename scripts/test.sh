@@ -3,8 +3,13 @@
 # installed CMake package, as another project would.
 set -euo pipefail
 cd "$(dirname "$0")/.."
+start=$SECONDS
 bash scripts/build.sh
+echo "build: $((SECONDS - start)) s"
+test_start=$SECONDS
 (cd build && ctest --output-on-failure -j "$(nproc)")
+echo "tests: $((SECONDS - test_start)) s"
+examples_start=$SECONDS
 rm -rf build/install build/examples
 cmake --install build >/dev/null
 cmake -S examples -B build/examples -G Ninja -DCMAKE_BUILD_TYPE=Release -DCMAKE_PREFIX_PATH="$PWD/build/install" >/dev/null
@@ -17,3 +22,4 @@ build/examples/WriteReadDCV build/examples/run/phantom.nrrd build/examples/run/p
 build/examples/ReadDCVImage build/examples/run/phantom.dcv build/examples/run/phantom-decoded.nrrd
 build/examples/DecodeDCVRegion build/examples/run/phantom.dcv build/examples/run/slab.nrrd 20 27
 build/examples/ReadDCVMesh build/examples/run/phantom.dcv
+echo "examples: $((SECONDS - examples_start)) s"

@@ -291,6 +291,25 @@ DecodeVolume(const CompressedFile & file, TFunction && f, const DecodeLimits & l
   VisitPixelType(file.header.pixelType, [&](auto pixel) { f(DecodeImage<decltype(pixel)>(file, limits)); });
 }
 
+/** ReadVolume, WriteVolume and DecodeImage for an image of pixel type T: the explicit instantiation
+ * declarations (EXTERN: extern) or definitions (EXTERN empty). */
+#define DCV_TOOLS_INSTANTIATION(EXTERN, T)                                                                             \
+  EXTERN template itk::Image<T, 3>::Pointer ReadVolume<T>(const std::string &);                                        \
+  EXTERN template itk::Image<T, 3>::Pointer ReadVolume<T>(const VolumeInput &);                                        \
+  EXTERN template void                      WriteVolume(const itk::Image<T, 3> *, const std::string &, bool);          \
+  EXTERN template itk::Image<T, 3>::Pointer DecodeImage<T>(const CompressedFile &, const DecodeLimits &)
+
+// ITK's readers (a file, a DICOM series) and writers for the .dcv pixel types are compiled once, in
+// dcvToolsInstantiations*.cxx, instead of again in every program that reads, writes or decodes a volume.
+DCV_TOOLS_INSTANTIATION(extern, uint8_t);
+DCV_TOOLS_INSTANTIATION(extern, int8_t);
+DCV_TOOLS_INSTANTIATION(extern, uint16_t);
+DCV_TOOLS_INSTANTIATION(extern, int16_t);
+DCV_TOOLS_INSTANTIATION(extern, uint32_t);
+DCV_TOOLS_INSTANTIATION(extern, int32_t);
+DCV_TOOLS_INSTANTIATION(extern, float);
+DCV_TOOLS_INSTANTIATION(extern, double);
+
 } // namespace dcv::tools
 
 #endif
