@@ -442,7 +442,7 @@ Run(const EncoderInput & input, const EncoderOptions & o, bool coded, std::vecto
     throw std::invalid_argument("NumberOfPoints (--points) must be at most the number of voxels, " +
                                 std::to_string(voxels) + ", got " + std::to_string(o.numberOfPoints));
   }
-  CheckEncodingMemory(input.header.size, o); // after the targets' own bounds: their messages say more
+  CheckEncodingMemory(grid, o); // callers of dcv::Encode without itk::DCVEncode's earlier check
   const auto range = std::minmax_element(input.voxels, input.voxels + voxels);
   const bool integer = IsInteger(input.header.pixelType);
 

@@ -19,7 +19,6 @@
 #include "dcvParallel.h"
 
 #include <algorithm>
-#include <cmath>
 #include <limits>
 #include <stdexcept>
 #include <string>

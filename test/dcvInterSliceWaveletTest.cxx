@@ -228,7 +228,8 @@ PlainInverse(std::vector<int64_t> c, int32_t levels)
       x[std::size_t(2 * i)] = c[std::size_t(i)] - FloorDivide(h(i - 1) + h(i) + 2, 4);
     for (int32_t i = 0; i < highs; ++i)
       x[std::size_t(2 * i + 1)] =
-        c[std::size_t(lows + i)] + FloorDivide(x[std::size_t(2 * i)] + x[std::size_t(2 * i + 2 < m ? 2 * i + 2 : 2 * i)], 2);
+        c[std::size_t(lows + i)] +
+        FloorDivide(x[std::size_t(2 * i)] + x[std::size_t(2 * i + 2 < m ? 2 * i + 2 : 2 * i)], 2);
     std::copy(x.begin(), x.end(), c.begin());
   }
   for (int64_t & v : c)
