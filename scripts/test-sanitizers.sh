@@ -29,9 +29,18 @@ supp="$PWD/test/sanitizers"
 export ASAN_OPTIONS="halt_on_error=1:abort_on_error=1:detect_leaks=1:check_initialization_order=1:strict_init_order=1:detect_stack_use_after_return=1:log_path=$reports/asan"
 export UBSAN_OPTIONS="halt_on_error=1:abort_on_error=1:print_stacktrace=1:log_path=$reports/ubsan:suppressions=$supp/ubsan.supp"
 export LSAN_OPTIONS="suppressions=$supp/lsan.supp:print_suppressions=0"
+# Not run here, for time: three tests that check a result's quality or agreement on real data, each with a
+# cheaper test of the same code paths that does run (in parentheses). They were 155 of the 837 CPU-seconds
+# of this step; scripts/test.sh runs them in Release.
+heavy=(
+  'Encoder.MeetsAPSNRTargetWithFewPoints'                 # (CommandLine.CompressToAPSNRTarget)
+  'DCVImageIO.ImageFileWriterWritesWhatTheToolWrites'     # (DCVImageIO.ImageFileWriterWritesRealCTAsTheToolDoes)
+  'PositionCoder.RealPointSetsCostLessThanRandomOnes'     # (PositionCoder.RandomSetsOfManyDensities)
+)
+exclude="^($(IFS='|'; echo "${heavy[*]}"))\$"
 test_start=$SECONDS
 status=0
-(cd build-asan && ctest --output-on-failure -j "$(nproc)") || status=1
+(cd build-asan && ctest --output-on-failure -j "$(nproc)" -E "$exclude") || status=1
 echo "sanitizer tests: $((SECONDS - test_start)) s"
 if [ -n "$(ls -A "$reports")" ]; then
   for f in "$reports"/*; do

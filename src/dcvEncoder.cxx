@@ -472,7 +472,10 @@ Run(const EncoderInput & input, const EncoderOptions & o, bool coded, std::vecto
   r.header.quantizationOrigin = parameters.quantizationOrigin;
   r.header.scale = parameters.scale;
   r.quantizationStep = parameters.quantizationStep;
-  RefinementEngine engine(input.voxels, grid, parameters);
+  // Owned here so that its state (the mesh, the heaps: about 1.5 KiB a point) is freed before the residual
+  // layers, which need volume-sized buffers of their own.
+  auto               owned = std::make_unique<RefinementEngine>(input.voxels, grid, parameters);
+  RefinementEngine & engine = *owned;
   // The file is the payload plus a header that depends on the geometry and the metadata only.
   const double     fileBytes = std::floor(o.bitsPerVoxel * double(voxels) / 8.0);
   const double     headerBytes = double(SerializeFile(r.header, {}).size());
@@ -553,6 +556,10 @@ Run(const EncoderInput & input, const EncoderOptions & o, bool coded, std::vecto
   r.squaredError = engine.GetSquaredError();
   r.smoothedPSNR = engine.GetSmoothedPSNR();
   r.peak = parameters.peak;
+  r.timings.refinement = engine.GetTimings().refinement;
+  r.timings.decimation = engine.GetTimings().decimation;
+  r.timings.leastSquares = engine.GetTimings().leastSquares;
+  owned.reset();
   if (layers)
   {
     cornersDone();
@@ -562,9 +569,6 @@ Run(const EncoderInput & input, const EncoderOptions & o, bool coded, std::vecto
   }
   r.header.quantizationStep = r.quantizationStep > 0.0 ? r.quantizationStep : 1.0;
   r.header.numberOfPoints = uint32_t(r.approximation.points.size());
-  r.timings.refinement = engine.GetTimings().refinement;
-  r.timings.decimation = engine.GetTimings().decimation;
-  r.timings.leastSquares = engine.GetTimings().leastSquares;
   r.timings.total = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
   return r;
 }

@@ -388,6 +388,13 @@ struct RefinementEngine::Impl
       const uint64_t rowOffset = grid.Offset(0, y, z);
       const float *  row = image + rowOffset;
       const float *  rowSelection = selection + rowOffset;
+      // The cell's next rows start near x0: their first cache lines are fetched while this row is scanned
+      // (the scans waited on memory at each row start; ct-avm at 0.0625 bpv: 11% less CPU time, the same file).
+      if (y + 2 < grid.y)
+      {
+        __builtin_prefetch(row + grid.x + x0);
+        __builtin_prefetch(row + 2 * grid.x + x0);
+      }
       for (int32_t x = x0; x <= x1; ++x)
       {
         // The same expression as Rasterize(), so decoder and engine agree to the bit.
@@ -929,22 +936,41 @@ RefinementEngine::OptimizeValues()
       }
       double m[4][4] = {};
       double r[4] = {};
+      // Along a row each weight is a + g u (u = x - x0), so a row adds a_j a_k count + (a_j g_k + a_k g_j)
+      // sum u + g_j g_k sum u^2 to M_jk and a_j sum I + g_j sum u I to b_j: the voxels are read for sum I
+      // and sum u I only (sum u and sum u^2 are closed forms, exact). The same values as summing w_j w_k
+      // per voxel up to rounding; the files of the dev volumes came out the same.
       ForEachSpan(d.grid, p, [&](int32_t y, int32_t z, int32_t x0, int32_t x1) {
         const float * row = d.image + d.grid.Offset(0, y, z);
+        if (y + 2 < d.grid.y) // as in Scan()
+        {
+          __builtin_prefetch(row + d.grid.x + x0);
+          __builtin_prefetch(row + 2 * d.grid.x + x0);
+        }
+        double sumI = 0.0, sumUI = 0.0;
         for (int32_t x = x0; x <= x1; ++x)
         {
-          double w[4];
-          w[0] = phi[0](x, y, z);
-          w[1] = phi[1](x, y, z);
-          w[2] = phi[2](x, y, z);
-          w[3] = 1.0 - w[0] - w[1] - w[2];
-          for (int j = 0; j < 4; ++j)
+          const double value = double(row[x]);
+          sumI += value;
+          sumUI += double(x - x0) * value;
+        }
+        const double count = double(x1 - x0 + 1);
+        const double sumU = count * (count - 1.0) / 2.0;
+        const double sumUU = (count - 1.0) * count * (2.0 * count - 1.0) / 6.0;
+        double       a[4], g[4];
+        for (int k = 0; k < 3; ++k)
+        {
+          a[k] = phi[k](x0, y, z);
+          g[k] = phi[k].gx;
+        }
+        a[3] = 1.0 - a[0] - a[1] - a[2];
+        g[3] = -(g[0] + g[1] + g[2]);
+        for (int j = 0; j < 4; ++j)
+        {
+          r[j] += a[j] * sumI + g[j] * sumUI;
+          for (int k = j; k < 4; ++k)
           {
-            r[j] += w[j] * double(row[x]);
-            for (int k = j; k < 4; ++k)
-            {
-              m[j][k] += w[j] * w[k];
-            }
+            m[j][k] += a[j] * a[k] * count + (a[j] * g[k] + a[k] * g[j]) * sumU + g[j] * g[k] * sumUU;
           }
         }
       });
