@@ -68,8 +68,9 @@ for s in "${encoder[@]}"; do
   encoder_objects+=("$out/obj/$s.o")
 done
 # The ITK side, by g++ with ASan and UBSan (its instrumentation calls the ASan and UBSan runtime that clang
-# links into the fuzzer; libFuzzer's coverage comes from the clang-built core).
-itk_flags=(-std=c++17 -O1 -g -fno-omit-frame-pointer -fsanitize=address,undefined -fno-sanitize-recover=undefined
+# links into the fuzzer; libFuzzer's coverage comes from the clang-built core), at -O0: it is glue around
+# the core and ITK's own libraries, and compiles twice as fast (itkDCVEncoderIntegers.cxx: 36 s, 79 at -O1).
+itk_flags=(-std=c++17 -O0 -g -fno-omit-frame-pointer -fsanitize=address,undefined -fno-sanitize-recover=undefined
   -Iinclude -I"$out/include" -Ifuzz -isystem /usr/include/ITK-5.2 -isystem /usr/include/eigen3 -DNDEBUG)
 itk_objects=()
 # itkDCVEncoder*.cxx: the encoder DCVImageIO::Write calls (itkDCVEncoder.h declares it extern).

@@ -1,6 +1,7 @@
 #!/usr/bin/env bash
-# CI's second build (.ci/run, after scripts/test.sh): the whole test suite built with AddressSanitizer (and
-# LeakSanitizer) and UndefinedBehaviorSanitizer (gcc; line tables, any undefined behaviour fatal; the library
+# CI's second build (.ci/run, after scripts/test.sh): the test suite (all but three heavy tests, below) built
+# with AddressSanitizer (and LeakSanitizer) and UndefinedBehaviorSanitizer (gcc; line tables, any undefined
+# behaviour fatal; the library
 # and tools/common at -O1, the programs and tests, ITK glue, at -O0: they compile faster) in build-asan/, run
 # by ctest; the decoder of build/ (scripts/test.sh) under valgrind on the fuzz seeds; then a short libFuzzer
 # run of every fuzz target (scripts/fuzz.sh, DCV_CI_FUZZ_SECONDS per target, default 30; 0 skips it). Fails
