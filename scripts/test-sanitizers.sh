@@ -1,8 +1,8 @@
 #!/usr/bin/env bash
 # CI's second build (.ci/run, after scripts/test.sh): the test suite (all but three heavy tests, below) built
 # with AddressSanitizer (and LeakSanitizer) and UndefinedBehaviorSanitizer (gcc; line tables, any undefined
-# behaviour fatal; the library
-# and tools/common at -O1, the programs and tests, ITK glue, at -O0: they compile faster) in build-asan/, run
+# behaviour fatal; the library and tools/common at -O1, the programs and tests, ITK glue, at -O0: they
+# compile faster) in build-asan/, run
 # by ctest; the decoder of build/ (scripts/test.sh) under valgrind on the fuzz seeds; then a short libFuzzer
 # run of every fuzz target (scripts/fuzz.sh, DCV_CI_FUZZ_SECONDS per target, default 30; 0 skips it). Fails
 # on any sanitizer report, in the tests or in the programs they run, even where a test expected its program
