@@ -20,6 +20,7 @@
 #include "dcvRefinementEngine.h"
 #include "dcvTestUtilities.h"
 
+#include <cmath>
 #include <cstring>
 #include <map>
 
@@ -379,6 +380,86 @@ TEST(RefinementEngine, LeastSquaresValuesAreNoWorse)
   EXPECT_NEAR(before - engine.GetSquaredError(), gain, 1e-6 * before);
   // A second solve has nothing left to gain.
   EXPECT_LE(engine.OptimizeValues(), 1e-6 * before);
+}
+
+/** The least-squares values against the normal equations assembled voxel by voxel from barycentric weights
+ * and solved directly: OptimizeValues() assembles per row from closed forms, and solves iteratively. */
+TEST(RefinementEngine, LeastSquaresValuesSolveTheNormalEquations)
+{
+  const GridSize           grid{ 22, 18, 16 };
+  const std::vector<float> image = PhantomVolume(grid);
+  RefinementEngine         engine(image.data(), grid, RefinementParameters{}); // no step, no range: no rounding
+  engine.Refine(60);
+  engine.OptimizeValues();
+  const Approximation a = engine.GetApproximation();
+  const std::size_t   n = a.points.size();
+  ASSERT_EQ(n, 60u);
+  std::vector<double> m(n * n, 0.0), b(n, 0.0);
+  for (int32_t z = 0; z < grid.z; ++z)
+    for (int32_t y = 0; y < grid.y; ++y)
+      for (int32_t x = 0; x < grid.x; ++x)
+      {
+        // The first cell containing the voxel; on a shared face the weights are the same from either side.
+        bool found = false;
+        for (const Tetrahedron & t : a.tetrahedra)
+        {
+          std::array<GridPoint, 4> p{ a.points[t[0]], a.points[t[1]], a.points[t[2]], a.points[t[3]] };
+          const double             whole = double(SignedVolume6(p));
+          if (whole == 0)
+            continue;
+          std::array<double, 4> w;
+          bool                  inside = true;
+          for (int i = 0; i < 4 && inside; ++i)
+          {
+            std::array<GridPoint, 4> r = p;
+            r[i] = { x, y, z };
+            w[i] = double(SignedVolume6(r)) / whole;
+            inside = w[i] >= 0.0;
+          }
+          if (!inside)
+            continue;
+          for (int j = 0; j < 4; ++j)
+          {
+            b[t[j]] += w[j] * image[grid.Offset(x, y, z)];
+            for (int k = 0; k < 4; ++k)
+              m[t[j] * n + t[k]] += w[j] * w[k];
+          }
+          found = true;
+          break;
+        }
+        ASSERT_TRUE(found) << x << "," << y << "," << z;
+      }
+  // Gaussian elimination with partial pivoting.
+  for (std::size_t c = 0; c < n; ++c)
+  {
+    std::size_t pivot = c;
+    for (std::size_t r = c + 1; r < n; ++r)
+      if (std::fabs(m[r * n + c]) > std::fabs(m[pivot * n + c]))
+        pivot = r;
+    ASSERT_GT(std::fabs(m[pivot * n + c]), 1e-12);
+    for (std::size_t k = 0; k < n; ++k)
+      std::swap(m[c * n + k], m[pivot * n + k]);
+    std::swap(b[c], b[pivot]);
+    for (std::size_t r = c + 1; r < n; ++r)
+    {
+      const double f = m[r * n + c] / m[c * n + c];
+      for (std::size_t k = c; k < n; ++k)
+        m[r * n + k] -= f * m[c * n + k];
+      b[r] -= f * b[c];
+    }
+  }
+  std::vector<double> solution(n);
+  for (std::size_t c = n; c-- > 0;)
+  {
+    double sum = b[c];
+    for (std::size_t k = c + 1; k < n; ++k)
+      sum -= m[c * n + k] * solution[k];
+    solution[c] = sum / m[c * n + c];
+  }
+  for (std::size_t i = 0; i < n; ++i)
+  {
+    EXPECT_NEAR(a.values[i], solution[i], 1e-4) << "vertex " << i;
+  }
 }
 
 TEST(RefinementEngine, QuantizedValuesStayOnTheLatticeAndDecodeExactly)
