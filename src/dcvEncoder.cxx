@@ -436,15 +436,13 @@ Run(const EncoderInput & input, const EncoderOptions & o, bool coded, std::vecto
   {
     throw std::invalid_argument("the encoder needs the voxels, and I* in modes that use it");
   }
+  // Everything that depends on the volume (the point count, the memory, finite voxels, ...), for callers of
+  // dcv::Encode without itk::DCVEncode's earlier check: a pass or two over the voxels, against the seconds
+  // of the encoding.
+  CheckOptions(o, input);
   const uint64_t voxels = grid.NumberOfVoxels();
-  if (o.numberOfPoints > voxels && o.bitsPerVoxel == 0.0 && o.psnr == 0.0)
-  {
-    throw std::invalid_argument("NumberOfPoints (--points) must be at most the number of voxels, " +
-                                std::to_string(voxels) + ", got " + std::to_string(o.numberOfPoints));
-  }
-  CheckEncodingMemory(grid, o); // callers of dcv::Encode without itk::DCVEncode's earlier check
-  const auto range = std::minmax_element(input.voxels, input.voxels + voxels);
-  const bool integer = IsInteger(input.header.pixelType);
+  const auto     range = std::minmax_element(input.voxels, input.voxels + voxels);
+  const bool     integer = IsInteger(input.header.pixelType);
 
   RefinementParameters parameters = ParametersForMode(o.mode);
   parameters.alpha = o.alpha;

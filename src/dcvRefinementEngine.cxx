@@ -85,6 +85,19 @@ private:
   std::chrono::steady_clock::time_point m_Start;
 };
 
+/** Asks for the first cache lines of the two rows after row y of `image`, where a cell's next rows start
+ * (near x0), while row y is read: the scans waited on memory at each row start (ct-avm at 0.0625 bpv: 11%
+ * less CPU time, the same file). */
+inline void
+PrefetchNextRows(const float * row, const GridSize & grid, int32_t y, int32_t x0)
+{
+  if (y + 2 < grid.y)
+  {
+    __builtin_prefetch(row + grid.x + x0);
+    __builtin_prefetch(row + 2 * grid.x + x0);
+  }
+}
+
 /** What rasterizing a cell against the image gives: its error sums, voxel count and worst voxel. */
 struct CellScan
 {
@@ -388,13 +401,7 @@ struct RefinementEngine::Impl
       const uint64_t rowOffset = grid.Offset(0, y, z);
       const float *  row = image + rowOffset;
       const float *  rowSelection = selection + rowOffset;
-      // The cell's next rows start near x0: their first cache lines are fetched while this row is scanned
-      // (the scans waited on memory at each row start; ct-avm at 0.0625 bpv: 11% less CPU time, the same file).
-      if (y + 2 < grid.y)
-      {
-        __builtin_prefetch(row + grid.x + x0);
-        __builtin_prefetch(row + 2 * grid.x + x0);
-      }
+      PrefetchNextRows(row, grid, y, x0);
       for (int32_t x = x0; x <= x1; ++x)
       {
         // The same expression as Rasterize(), so decoder and engine agree to the bit.
@@ -942,11 +949,7 @@ RefinementEngine::OptimizeValues()
       // per voxel up to rounding; the files of the dev volumes came out the same.
       ForEachSpan(d.grid, p, [&](int32_t y, int32_t z, int32_t x0, int32_t x1) {
         const float * row = d.image + d.grid.Offset(0, y, z);
-        if (y + 2 < d.grid.y) // as in Scan()
-        {
-          __builtin_prefetch(row + d.grid.x + x0);
-          __builtin_prefetch(row + 2 * d.grid.x + x0);
-        }
+        PrefetchNextRows(row, d.grid, y, x0);
         double sumI = 0.0, sumUI = 0.0;
         for (int32_t x = x0; x <= x1; ++x)
         {
