@@ -19,7 +19,7 @@
 #define itkDCVEncoder_h
 
 #include "dcvEncoder.h"
-#include "itkBilateralImageFilter.h"
+#include "itkDCVBilateralImageFilter.h"
 #include "itkDCVImageInformation.h"
 #include "itkImage.h"
 #include "itkImageRegionConstIterator.h"
@@ -63,7 +63,8 @@ public:
     {
       // I*: the bilateral filter of I (combined image approach), with sigmas in voxels.
       using SmoothedImageType = Image<float, 3>;
-      using BilateralType = BilateralImageFilter<TImage, SmoothedImageType>;
+      // ITK's BilateralImageFilter, the same voxels in a fraction of its time (itkDCVBilateralImageFilter.h).
+      using BilateralType = DCVBilateralImageFilter<TImage, SmoothedImageType>;
       auto bilateral = BilateralType::New();
       bilateral->SetInput(image);
       typename BilateralType::ArrayType sigmas;
@@ -122,7 +123,7 @@ public:
   }
 
 private:
-  /** PSNR(I*) against I over SampledSlices evenly spaced slices, each filtered alone (ITK computes
+  /** PSNR(I*) against I over SampledSlices evenly spaced slices, each filtered alone (the filter computes
    * the requested region only). */
   template <typename TFilter>
   double
