@@ -181,7 +181,8 @@ private:
   PixelType            type;
   GridSize             grid;
   std::size_t          maximumBytes;
-  std::vector<uint8_t> splineVoxels; // the spline's voxels, of the pixel type
+  std::vector<uint8_t> splineVoxels;              // the spline's voxels, of the pixel type (one when constant)
+  uint64_t             voxelMask{ ~uint64_t(0) }; // voxel i of the spline is splineVoxels[i & voxelMask]
   double               splineError{ 0.0 };
   std::vector<int32_t> samples; // the residual in steps
   ResidualChoice       best;

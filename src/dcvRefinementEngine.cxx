@@ -41,18 +41,26 @@ constexpr uint32_t NumberOfCorners = 8; // vertex ids 0-7, never removed
 /** Max-heap entry: a key and the cell it belongs to. Entries of dead cells are skipped when they
  * surface (lazy deletion); a cell only changes on a full rescan, which rebuilds the heaps. Ties
  * (frequent on integer images) go to the lower worst voxel: cell ids follow CGAL's memory order,
- * which varies from run to run, and the encoder must be reproducible. */
+ * which varies from run to run, and the encoder must be reproducible. The voxel is the cell's
+ * cellWorstVoxel, read by the order (ByKey) instead of stored: 16 bytes an entry instead of 24, and
+ * the heaps hold one or two entries for each cell id. */
 struct HeapEntry
 {
   double   key;
-  uint64_t voxel;
   uint32_t cell;
+};
+
+/** The heaps' order: the key, then the lower worst voxel of the entry's cell. */
+struct ByKey
+{
+  const std::vector<uint64_t> * worstVoxel;
   bool
-  operator<(const HeapEntry & o) const
+  operator()(const HeapEntry & a, const HeapEntry & b) const
   {
-    return key < o.key || (key == o.key && voxel > o.voxel);
+    return a.key < b.key || (a.key == b.key && (*worstVoxel)[a.cell] > (*worstVoxel)[b.cell]);
   }
 };
+using CellHeap = std::priority_queue<HeapEntry, std::vector<HeapEntry>, ByKey>;
 
 /** Min-heap entry of the decimation: removal cost of a vertex, valid while its stamp is current. */
 struct RemovalEntry
@@ -190,8 +198,8 @@ struct RefinementEngine::Impl
   std::vector<char>     cellAlive;
   std::size_t           liveCells{ 0 }; // CGAL counts its cells in linear time
 
-  std::priority_queue<HeapEntry> byCellError;  // MaxTetrahedronErrorPosition
-  std::priority_queue<HeapEntry> byVoxelError; // MaxErrorPosition
+  CellHeap byCellError{ ByKey{ &cellWorstVoxel } };  // MaxTetrahedronErrorPosition
+  CellHeap byVoxelError{ ByKey{ &cellWorstVoxel } }; // MaxErrorPosition
 
   std::vector<uint64_t> isVertex;                   // one bit per voxel
   uint64_t              meshVersion{ 0 };           // counts insertions and removals
@@ -367,14 +375,19 @@ struct RefinementEngine::Impl
   {
     if (cellError.size() <= id)
     {
-      const std::size_t n = std::max<std::size_t>(id + 1, cellError.size() * 2);
-      cellError.resize(n);
-      cellSelection.resize(n);
-      cellWorstError.resize(n);
-      cellWorstVoxel.resize(n);
-      cellVoxels.resize(n);
-      cellVolume.resize(n);
-      cellAlive.resize(n);
+      // Half as much again, reserved exactly (resize alone would double the capacity).
+      const std::size_t n = std::max<std::size_t>(id + 1, cellError.size() + cellError.size() / 2);
+      auto              grow = [n](auto & v) {
+        v.reserve(n);
+        v.resize(n);
+      };
+      grow(cellError);
+      grow(cellSelection);
+      grow(cellWorstError);
+      grow(cellWorstVoxel);
+      grow(cellVoxels);
+      grow(cellVolume);
+      grow(cellAlive);
     }
   }
 
@@ -447,8 +460,8 @@ struct RefinementEngine::Impl
     squaredError += s.sse;
     if (s.worstVoxel != NoVoxel)
     {
-      byCellError.push(HeapEntry{ s.sseSelection, s.worstVoxel, id });
-      byVoxelError.push(HeapEntry{ s.worst, s.worstVoxel, id });
+      byCellError.push(HeapEntry{ s.sseSelection, id });
+      byVoxelError.push(HeapEntry{ s.worst, id });
     }
   }
 
@@ -506,7 +519,7 @@ struct RefinementEngine::Impl
   CompactIfSparse()
   {
     const std::size_t live = liveCells;
-    if (mesh.NumberOfCellIds() < 3 * live + 4096)
+    if (mesh.NumberOfCellIds() < 2 * live + 4096)
     {
       return;
     }
@@ -538,12 +551,12 @@ struct RefinementEngine::Impl
     {
       if (cellWorstVoxel[c] != NoVoxel)
       {
-        bySelection.push_back(HeapEntry{ cellSelection[c], cellWorstVoxel[c], c });
-        byWorst.push_back(HeapEntry{ cellWorstError[c], cellWorstVoxel[c], c });
+        bySelection.push_back(HeapEntry{ cellSelection[c], c });
+        byWorst.push_back(HeapEntry{ cellWorstError[c], c });
       }
     }
-    byCellError = std::priority_queue<HeapEntry>(std::less<HeapEntry>(), std::move(bySelection));
-    byVoxelError = std::priority_queue<HeapEntry>(std::less<HeapEntry>(), std::move(byWorst));
+    byCellError = CellHeap(ByKey{ &cellWorstVoxel }, std::move(bySelection));
+    byVoxelError = CellHeap(ByKey{ &cellWorstVoxel }, std::move(byWorst));
   }
 
   // Positions in `cells` sorted by each cell's lowest vertex (z, then y, then x): visited in this order,
@@ -575,8 +588,8 @@ struct RefinementEngine::Impl
   void
   RescanAll()
   {
-    byCellError = {};
-    byVoxelError = {};
+    byCellError = CellHeap(ByKey{ &cellWorstVoxel });
+    byVoxelError = CellHeap(ByKey{ &cellWorstVoxel });
     squaredError = 0.0;
     std::fill(removalCostValid.begin(), removalCostValid.end(), 0);
     const auto            cells = mesh.FiniteCells();
@@ -591,7 +604,7 @@ struct RefinementEngine::Impl
 
   // Top live cell of a heap, or NoCell when none is left.
   static uint32_t
-  Top(std::priority_queue<HeapEntry> & heap, const std::vector<char> & alive)
+  Top(CellHeap & heap, const std::vector<char> & alive)
   {
     while (!heap.empty() && !alive[heap.top().cell])
     {

@@ -719,14 +719,18 @@ namespace
  * layer that takes the whole budget) is that value everywhere, exactly as Rasterize() gives it (every
  * cell's gradient is 0, so each voxel is the converted value; test ResidualLayer.ConstantSplineIsFilled),
  * and needs no rasterization. */
+bool
+IsConstant(const Approximation & spline)
+{
+  return !spline.values.empty() && spline.residual.samples.empty() &&
+         std::all_of(spline.values.begin(), spline.values.end(), [&](double v) { return v == spline.values.front(); });
+}
+
 template <typename T>
 void
 RasterizeSpline(const Approximation & spline, T * out)
 {
-  const bool constant =
-    !spline.values.empty() &&
-    std::all_of(spline.values.begin(), spline.values.end(), [&](double v) { return v == spline.values.front(); });
-  if (constant && spline.residual.samples.empty())
+  if (IsConstant(spline))
   {
     std::fill_n(out, spline.grid.NumberOfVoxels(), ConvertValue<T>(spline.values.front()));
     return;
@@ -767,11 +771,17 @@ ResidualSearch::ResidualSearch(const float * voxels, PixelType type, const Appro
   best.step = step;
   VisitPixelType(type, [&](auto pixel) {
     using T = decltype(pixel);
-    splineVoxels.resize(grid.NumberOfVoxels() * sizeof(T));
+    // A constant spline (the corners' candidate) is one voxel, read at every index: a volume less.
+    const bool constant = IsConstant(spline);
+    voxelMask = constant ? 0 : ~uint64_t(0);
+    splineVoxels.resize((constant ? 1 : grid.NumberOfVoxels()) * sizeof(T));
     T * decoded = reinterpret_cast<T *>(splineVoxels.data());
-    RasterizeSpline(spline, decoded);
+    if (constant)
+      decoded[0] = ConvertValue<T>(spline.values.front());
+    else
+      RasterizeSpline(spline, decoded);
     splineError = SumOverSlices(grid, [&](uint64_t i) {
-      const double e = double(voxels[i]) - double(decoded[i]);
+      const double e = double(voxels[i]) - double(decoded[i & voxelMask]);
       return e * e;
     });
   });
@@ -793,7 +803,7 @@ ResidualSearch::PrepareSamples()
       const uint64_t plane = uint64_t(grid.x) * uint64_t(grid.y);
       for (uint64_t i = z * plane, end = i + plane; i < end; ++i)
       {
-        const double r = std::round((double(voxels[i]) - double(decoded[i])) / step);
+        const double r = std::round((double(voxels[i]) - double(decoded[i & voxelMask])) / step);
         samples[i] = int32_t(std::clamp(r, -32767.0, 32767.0));
       }
     });
@@ -810,7 +820,7 @@ ResidualSearch::Measure(std::vector<uint8_t> && codestream, const ResidualCoding
     using T = decltype(pixel);
     const T * decoded = reinterpret_cast<const T *>(splineVoxels.data());
     error = SumOverSlices(grid, [&](uint64_t i) {
-      const double e = double(voxels[i]) - double(AddResidual(decoded[i], residual, i));
+      const double e = double(voxels[i]) - double(AddResidual(decoded[i & voxelMask], residual, i));
       return e * e;
     });
   });
