@@ -715,10 +715,9 @@ ResidualStep(double peak, bool integer)
 
 namespace
 {
-/** The spline's voxels, of the pixel type T: a spline whose values are all equal (the corners under a
- * layer that takes the whole budget) is that value everywhere, exactly as Rasterize() gives it (every
- * cell's gradient is 0, so each voxel is the converted value; test ResidualLayer.ConstantSplineIsFilled),
- * and needs no rasterization. */
+/** Whether the spline's values are all equal (the corners under a layer that takes the whole budget):
+ * such a spline is that value everywhere, exactly as Rasterize() gives it (every cell's gradient is 0, so
+ * each voxel is the converted value; test ResidualLayer.ConstantSplineIsFilled), and needs no volume. */
 bool
 IsConstant(const Approximation & spline)
 {
@@ -726,15 +725,11 @@ IsConstant(const Approximation & spline)
          std::all_of(spline.values.begin(), spline.values.end(), [&](double v) { return v == spline.values.front(); });
 }
 
+/** The spline's voxels, of the pixel type T, without its residual layer. */
 template <typename T>
 void
 RasterizeSpline(const Approximation & spline, T * out)
 {
-  if (IsConstant(spline))
-  {
-    std::fill_n(out, spline.grid.NumberOfVoxels(), ConvertValue<T>(spline.values.front()));
-    return;
-  }
   Approximation bare = spline;
   bare.residual = {};
   Rasterize(bare, out, CurrentThreads());
