@@ -137,6 +137,11 @@ CheckFiniteVoxels(const TImage * image, const std::string & input)
 std::string
 FormatPSNR(double psnr);
 
+/** The residual layer as compress and info print it: the bytes it takes in the file, and those of the whole
+ * JPEG 2000 codestream a decoder rebuilds from them (its markers restored); "none" without a layer. */
+std::string
+FormatResidualLayer(const FileHeader & header);
+
 /** The default --points (10000) for a volume of `voxels`: at most the voxels, so that a small volume
  * needs no option; a count given on the command line is kept, and refused if too large. */
 void

@@ -64,10 +64,7 @@ Compress(const CompressOptions & c)
               << "bytes: " << r.bytes.size() << "\n"
               << "bpv: " << double(r.bytes.size()) * 8.0 / voxels << "\n"
               << "points: " << r.header.numberOfPoints << "\n"
-              << "residual layer: "
-              << (r.header.residualLayer.empty() ? std::string("none")
-                                                 : std::to_string(r.header.residualLayer.size()) + " bytes")
-              << "\n"
+              << "residual layer: " << FormatResidualLayer(r.header) << "\n"
               << "step: " << r.header.quantizationStep << "\n"
               << "scale: " << r.header.scale[0] << " " << r.header.scale[1] << " " << r.header.scale[2] << "\n"
               << "PSNR: " << FormatPSNR(r.psnr) << "\n"

@@ -51,7 +51,7 @@ Info(const std::string & input)
     std::cout << "none\n";
   else
   {
-    std::cout << h.residualLayer.size() << " bytes of JPEG 2000, step " << h.residualStep;
+    std::cout << FormatResidualLayer(h) << ", step " << h.residualStep;
     if (h.residualLevels > 0)
       std::cout << ", inter-slice wavelet of " << h.residualLevels << " levels";
     std::cout << "\n";

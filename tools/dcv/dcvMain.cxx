@@ -19,6 +19,7 @@
 // beside this one (dcvCompress.cxx, dcvDecompress.cxx, ...).
 #include "dcvCommand.h"
 #include "dcvProgress.h"
+#include "dcvResidualLayer.h"
 
 #include "itkMacro.h"
 #include "itkMultiThreaderBase.h"
@@ -194,6 +195,15 @@ FormatPSNR(double psnr)
   else
     text << psnr << " dB";
   return text.str();
+}
+
+std::string
+FormatResidualLayer(const FileHeader & header)
+{
+  if (header.residualLayer.empty())
+    return "none";
+  return std::to_string(StoredLayerBytes(header.residualLayer, header.size)) + " bytes (a JPEG 2000 codestream of " +
+         std::to_string(header.residualLayer.size()) + ")";
 }
 
 void

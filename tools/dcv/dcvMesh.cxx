@@ -17,6 +17,7 @@
  *=========================================================================*/
 // dcv mesh: the tetrahedral mesh of a .dcv file (its linear spline) as a VTK file, for direct
 // rendering; no voxel is decoded.
+#include "dcvResidualLayer.h"
 #include "dcvCodec.h"
 #include "dcvCommand.h"
 #include "dcvVtkWriter.h"
@@ -108,8 +109,8 @@ Mesh(const MeshOptions & m)
               << "seconds: " << SecondsSince(start) << "\n";
     if (!file.header.residualLayer.empty())
     {
-      std::cout << "residual layer: not part of the mesh (" << file.header.residualLayer.size()
-                << " bytes of the file; the mesh is the spline)\n";
+      std::cout << "residual layer: not part of the mesh, which is the spline ("
+                << StoredLayerBytes(file.header.residualLayer, file.header.size) << " bytes of the file)\n";
     }
   }
 }
