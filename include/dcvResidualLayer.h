@@ -162,12 +162,13 @@ public:
   {
     return best.codestream.empty() ? std::numeric_limits<double>::infinity() : best.squaredError;
   }
-  /** The best coding tried (no codestream when none fits). */
+  /** The best coding tried (no codestream when none fits), its samples decoded again after Release(). */
   ResidualChoice
-  Best() &&
-  {
-    return std::move(best);
-  }
+  Best() &&;
+  /** Frees the volume-sized buffers (the residual samples, the best coding's decoded samples) while the
+   * search waits: Fill() computes the samples again, Best() decodes its codestream again. */
+  void
+  Release();
 
 private:
   void

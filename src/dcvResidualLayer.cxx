@@ -864,6 +864,7 @@ ResidualSearch::Fill(std::size_t slack, int attempts)
   const std::size_t limit = Limit(bestCoding);
   if (limit - bestStored <= slack)
     return 0;
+  PrepareSamples();
   LayerImage image;
   if (!PrepareImage(samples, grid, bestCoding.arrangement, bestCoding.levels, image))
     return 0;
@@ -906,6 +907,21 @@ ResidualSearch::Fill(std::size_t slack, int attempts)
     }
   }
   return tried;
+}
+
+void
+ResidualSearch::Release()
+{
+  std::vector<int32_t>().swap(samples);
+  std::vector<int32_t>().swap(best.samples);
+}
+
+ResidualChoice
+ResidualSearch::Best() &&
+{
+  if (!best.codestream.empty() && best.samples.empty())
+    best.samples = DecodeResidualLayer(best.codestream, grid, "residual layer", best.levels);
+  return std::move(best);
 }
 
 ResidualChoice

@@ -388,6 +388,46 @@ TEST(ResidualLayer, FillStaysWithinTheBudgetAndDecodesNoWorse)
   std::cout << filled << " of 5 budgets filled further" << std::endl;
 }
 
+// A search released between its trials (the corners' candidate waiting for the points) chooses, fills
+// and returns the same as one that kept its buffers: the samples computed again, the best decoded again.
+TEST(ResidualLayer, ReleasedSearchGivesTheSameChoice)
+{
+  const GridSize     g{ 64, 60, 8 };
+  const auto         image = ThickSlices(g);
+  std::vector<float> voxels(image->GetBufferPointer(), image->GetBufferPointer() + g.NumberOfVoxels());
+  dcv::Approximation corners;
+  corners.grid = g;
+  for (int32_t z : { 0, g.z - 1 })
+    for (int32_t y : { 0, g.y - 1 })
+      for (int32_t x : { 0, g.x - 1 })
+        corners.points.push_back({ x, y, z });
+  corners.values.assign(8, 0.0);
+  corners.tetrahedra = dcv::Tetrahedralize(corners.points);
+  for (bool fill : { false, true })
+  {
+    dcv::ResidualSearch kept(voxels.data(), dcv::PixelType::Int16, corners, 1.0, 2500);
+    dcv::ResidualSearch released(voxels.data(), dcv::PixelType::Int16, corners, 1.0, 2500);
+    for (dcv::ResidualSearch * s : { &kept, &released })
+    {
+      s->Try({ dcv::Wavelet::Irreversible97, dcv::Arrangement::Mosaic, 0 });
+      s->Try({ dcv::Wavelet::Irreversible97, dcv::Arrangement::Mosaic, 2 });
+    }
+    released.Release();
+    EXPECT_EQ(released.BestError(), kept.BestError());
+    EXPECT_EQ(released.Unused(), kept.Unused());
+    if (fill)
+      EXPECT_EQ(released.Fill(0, 3), kept.Fill(0, 3));
+    EXPECT_EQ(released.BestError(), kept.BestError()) << fill;
+    const dcv::ResidualChoice a = std::move(kept).Best();
+    const dcv::ResidualChoice b = std::move(released).Best();
+    ASSERT_FALSE(a.codestream.empty());
+    EXPECT_EQ(b.codestream, a.codestream) << fill;
+    EXPECT_EQ(b.levels, a.levels) << fill;
+    EXPECT_EQ(b.samples.size(), g.NumberOfVoxels()) << fill;
+    EXPECT_EQ(b.samples, a.samples) << fill;
+  }
+}
+
 // Form bits: a constant spline takes no q, n, L or payload; a unit step is not stored; unknown form bits,
 // a form byte without a layer and a constant spline with a payload are refused.
 TEST(ResidualLayer, FormByteShortensTheContainer)
