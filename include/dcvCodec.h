@@ -46,6 +46,9 @@ constexpr int64_t MaximumQuantizationIndex = int64_t(1) << 30;
  * for the points and a.scale), which spares the encoder a tetrahedralization per rate-control step. */
 DelaunayCompression_EXPORT std::vector<uint8_t>
                            EncodePayload(const Approximation & a, double q0, double q, bool delaunay = false);
+/** The same, taking `a`'s points and tetrahedra (renumbered in place: a copy of the mesh less). */
+DelaunayCompression_EXPORT std::vector<uint8_t>
+                           EncodePayload(Approximation && a, double q0, double q, bool delaunay = false);
 
 /** Decodes `count` points and their values, with the tetrahedra over them, ready for Rasterize().
  * Throws FormatError starting with `name` when the payload is truncated or damaged: at once when `count`

@@ -120,6 +120,9 @@ struct EncoderInput
   const float * voxels{ nullptr };
   const float * smoothed{ nullptr };
   FileHeader    header; // pixelType, size, spacing, origin, direction
+  /** When set, called once the encoder no longer reads I* (the points are done, the residual layers
+   * follow), so that its owner can free it for them; `smoothed` is not read after the call. */
+  std::function<void()> releaseSmoothed;
 };
 
 /** The scale that makes the Delaunay space follow the physical spacing: integers 1 to MaximumGridScale

@@ -23,6 +23,7 @@
 #include "dcvFileFormat.h"
 
 #include <cstdint>
+#include <functional>
 #include <limits>
 #include <string>
 #include <vector>
@@ -128,7 +129,7 @@ struct ResidualCoding
  * `maximumBytes` bytes (the codestream as stored, StoredLayerBytes(), and, with an inter-slice wavelet, its levels),
  * one coding at a time, so that the caller chooses the next coding from the errors so far; keeps the coding that
  * decodes closest, decoded as a decoder will. The spline is rasterized once (a constant one is filled), on the
- * encoder's threads; the residual samples are computed at the first Try(). `voxels` must outlive it. */
+ * encoder's threads; the residual samples for each encode (no volume of them is kept between). `voxels` must outlive it. */
 class DelaunayCompression_EXPORT ResidualSearch
 {
 public:
@@ -162,17 +163,14 @@ public:
   {
     return best.codestream.empty() ? std::numeric_limits<double>::infinity() : best.squaredError;
   }
-  /** The best coding tried (no codestream when none fits), its samples decoded again after Release(). */
+  /** The best coding tried (no codestream when none fits), its codestream decoded again for the samples. */
   ResidualChoice
   Best() &&;
-  /** Frees the volume-sized buffers (the residual samples, the best coding's decoded samples) while the
-   * search waits: Fill() computes the samples again, Best() decodes its codestream again. */
-  void
-  Release();
 
 private:
-  void
-  PrepareSamples();
+  /** The residual in steps, laid out as the grid, computed on each call (not kept between codings). */
+  std::function<std::vector<int32_t>()>
+  Source() const;
   double
   Measure(std::vector<uint8_t> && codestream, const ResidualCoding & coding, double target);
   std::size_t
@@ -185,7 +183,6 @@ private:
   std::vector<uint8_t> splineVoxels;              // the spline's voxels, of the pixel type (one when constant)
   uint64_t             voxelMask{ ~uint64_t(0) }; // voxel i of the spline is splineVoxels[i & voxelMask]
   double               splineError{ 0.0 };
-  std::vector<int32_t> samples; // the residual in steps
   ResidualChoice       best;
   ResidualCoding       bestCoding{ Wavelet::Irreversible97, Arrangement::Mosaic, 0 };
   double               bestTarget{ 0.0 }; // OpenJPEG's target that gave the best codestream

@@ -105,10 +105,24 @@ public:
   /** Slices of I* sampled for the estimate. */
   static constexpr unsigned int SampledSlices = 8;
 
+  DCVEncoderInput(const DCVEncoderInput &) = delete;
+  DCVEncoderInput &
+  operator=(const DCVEncoderInput &) = delete;
+
   const dcv::EncoderInput &
   Get() const
   {
     return m_Input;
+  }
+  /** Lets one encoding free I* once it is done with it (dcv::EncoderInput::releaseSmoothed); the input
+   * cannot be encoded again in a mode that uses I*. */
+  void
+  ReleaseSmoothedWhenDone()
+  {
+    m_Input.releaseSmoothed = [this] {
+      m_Input.smoothed = nullptr;
+      m_Smoothed = nullptr;
+    };
   }
   double
   GetSmoothingSeconds() const
@@ -162,15 +176,19 @@ private:
 namespace DCVEncoderDetail
 {
 /** Runs `call` (dcv::Encode or dcv::Approximate) on the image, with progress spread over the
- * smoothing (the first 20% when the mode smooths) and the method. */
+ * smoothing (the first 20% when the mode smooths) and the method; `owner`, when given, is released once
+ * the encoder has its copy of the image and I*. */
 template <typename TImage, typename TCall>
 dcv::EncoderResult
-Run(const TImage * image, const dcv::EncoderOptions & options, TCall call)
+Run(const TImage * image, const dcv::EncoderOptions & options, TCall call, SmartPointer<TImage> * owner = nullptr)
 {
-  const auto                    start = std::chrono::steady_clock::now();
-  const DCVEncoderInput<TImage> input(image, options);
-  dcv::EncoderOptions           o = options;
-  const double                  engineStart = input.Get().smoothed ? 0.2 : 0.0;
+  const auto              start = std::chrono::steady_clock::now();
+  DCVEncoderInput<TImage> input(image, options);
+  if (owner)
+    *owner = nullptr;
+  input.ReleaseSmoothedWhenDone(); // for the residual layers' buffers (the 5 mm CT series: 29 MB)
+  dcv::EncoderOptions     o = options;
+  const double            engineStart = input.Get().smoothed ? 0.2 : 0.0;
   if (options.progress)
   {
     options.progress(engineStart);
@@ -195,6 +213,17 @@ DCVEncode(const TImage * image, const dcv::EncoderOptions & options)
   return DCVEncoderDetail::Run(image, options, &dcv::Encode);
 }
 
+/** The same, taking the caller's reference to the image: the image is freed as soon as the encoder has
+ * its own copy and I* (unless other references hold it), which lowers the peak memory by the size of
+ * the image (2 bytes a voxel for int16 CT). */
+template <typename TImage>
+dcv::EncoderResult
+DCVEncode(SmartPointer<TImage> && image, const dcv::EncoderOptions & options)
+{
+  SmartPointer<TImage> owner = std::move(image);
+  return DCVEncoderDetail::Run(owner.GetPointer(), options, &dcv::Encode, &owner);
+}
+
 /** Approximates an image without making a file (dcv::Approximate). */
 template <typename TImage>
 dcv::EncoderResult
@@ -207,6 +236,8 @@ DCVApproximate(const TImage * image, const dcv::EncoderOptions & options)
  * extern) or definitions (EXTERN empty) for one pixel type T. */
 #define DCV_ENCODER_INSTANTIATION(EXTERN, T)                                                                           \
   EXTERN template DelaunayCompression_EXPORT dcv::EncoderResult DCVEncode(const Image<T, 3> *,                         \
+                                                                          const dcv::EncoderOptions &);                \
+  EXTERN template DelaunayCompression_EXPORT dcv::EncoderResult DCVEncode(SmartPointer<Image<T, 3>> &&,                \
                                                                           const dcv::EncoderOptions &);                \
   EXTERN template DelaunayCompression_EXPORT dcv::EncoderResult DCVApproximate(const Image<T, 3> *,                    \
                                                                                const dcv::EncoderOptions &)

@@ -33,7 +33,8 @@ cmp -s "$out/include/DelaunayCompressionExport.h.new" "$out/include/DelaunayComp
   mv "$out/include/DelaunayCompressionExport.h.new" "$out/include/DelaunayCompressionExport.h"
 rm -f "$out/include/DelaunayCompressionExport.h.new"
 
-flags=(-std=c++17 -O1 -g -fno-omit-frame-pointer -fsanitize=address,undefined -fno-sanitize-recover=undefined
+# -frounding-math as CGAL's CMake gives gcc: its interval arithmetic switches the rounding mode.
+flags=(-std=c++17 -O1 -g -fno-omit-frame-pointer -frounding-math -fsanitize=address,undefined -fno-sanitize-recover=undefined
   -Iinclude -I"$out/include" -isystem /usr/include/eigen3 -DNDEBUG)
 core=(dcvFileFormat dcvCodec dcvArithmeticCoder dcvPositionCoder dcvApproximation dcvTetrahedralization
   dcvResidualLayer dcvInterSliceWavelet)

@@ -18,7 +18,7 @@ cmake -S . -B build-asan -G Ninja -DDCV_SANITIZE=ON -DCMAKE_BUILD_TYPE=RelWithDe
   -DCMAKE_CXX_FLAGS_RELWITHDEBINFO="-O1 -g1 -DNDEBUG" -DCMAKE_C_FLAGS_RELWITHDEBINFO="-O1 -g1 -DNDEBUG" \
   -DDelaunayCompression_BUILD_BENCHMARKS=OFF -DDelaunayCompression_WRAP_CHECK_TYPES="UC;F" \
   -DDelaunayCompression_PROGRAM_COMPILE_OPTIONS=-O0 >/dev/null
-cmake --build build-asan
+cmake --build build-asan -j "$(nproc)"
 echo "sanitizer build: $((SECONDS - start)) s"
 
 reports="$PWD/build-asan/sanitizer-reports"

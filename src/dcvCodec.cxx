@@ -31,7 +31,8 @@ namespace dcv
 {
 namespace
 {
-/** Neighbours of each vertex through the tetrahedra, as compressed rows. */
+/** The earlier neighbours of each vertex through the tetrahedra (those of smaller index: the only ones a
+ * prediction reads, half the pairs), as compressed rows. */
 struct Adjacency
 {
   std::vector<uint32_t> start; // size n + 1
@@ -39,12 +40,13 @@ struct Adjacency
 
   Adjacency(std::size_t n, const std::vector<Tetrahedron> & tetrahedra)
   {
-    // Compressed rows by counting (each cell gives each of its vertices 3 neighbours), then each short
-    // row sorted and deduplicated: much faster than sorting all vertex pairs at once.
+    // Compressed rows by counting, then each short row sorted and deduplicated: much faster than
+    // sorting all vertex pairs at once.
     start.assign(n + 1, 0);
     for (const auto & t : tetrahedra)
       for (int i = 0; i < 4; ++i)
-        start[t[i] + 1] += 3;
+        for (int j = 0; j < 4; ++j)
+          start[t[i] + 1] += t[j] < t[i] ? 1 : 0;
     for (std::size_t i = 0; i < n; ++i)
       start[i + 1] += start[i];
     std::vector<uint32_t> fill(start.begin(), start.end() - 1);
@@ -52,7 +54,7 @@ struct Adjacency
     for (const auto & t : tetrahedra)
       for (int i = 0; i < 4; ++i)
         for (int j = 0; j < 4; ++j)
-          if (i != j)
+          if (t[j] < t[i])
             neighbour[fill[t[i]]++] = t[j];
     uint32_t out = 0;
     for (std::size_t i = 0; i < n; ++i)
@@ -86,12 +88,8 @@ public:
     known = 0;
     for (uint32_t e = adjacency.start[i]; e < adjacency.start[i + 1]; ++e)
     {
-      const uint32_t j = adjacency.neighbour[e];
-      if (j < i)
-      {
-        sum += k[j];
-        ++known;
-      }
+      sum += k[adjacency.neighbour[e]]; // an earlier neighbour: already coded
+      ++known;
     }
     if (known == 0)
     {
@@ -106,6 +104,19 @@ public:
 std::vector<uint8_t>
 EncodePayload(const Approximation & a, double q0, double q, bool delaunay)
 {
+  Approximation copy;
+  copy.grid = a.grid;
+  copy.scale = a.scale;
+  copy.points = a.points;
+  copy.values = a.values;
+  if (delaunay)
+    copy.tetrahedra = a.tetrahedra;
+  return EncodePayload(std::move(copy), q0, q, delaunay);
+}
+
+std::vector<uint8_t>
+EncodePayload(Approximation && a, double q0, double q, bool delaunay)
+{
   if (!(q > 0.0))
   {
     throw std::invalid_argument("EncodePayload: the quantization step must be positive");
@@ -117,7 +128,7 @@ EncodePayload(const Approximation & a, double q0, double q, bool delaunay)
   {
     indexAt[a.grid.Offset(a.points[i][0], a.points[i][1], a.points[i][2])] = uint32_t(i);
   }
-  std::vector<GridPoint> points = a.points;
+  std::vector<GridPoint> points = std::move(a.points);
   SortPositions(a.grid, points);
   std::vector<uint32_t> sorted(points.size());
   std::vector<int64_t>  k(points.size());
@@ -133,20 +144,23 @@ EncodePayload(const Approximation & a, double q0, double q, bool delaunay)
     }
     k[i] = int64_t(index);
   }
+  // What the mesh's adjacency no longer needs goes before it is built (the rate control's peak).
+  std::unordered_map<uint64_t, uint32_t>().swap(indexAt);
+  std::vector<double>().swap(a.values);
   std::vector<Tetrahedron> tetrahedra;
   if (delaunay)
   {
-    tetrahedra.reserve(a.tetrahedra.size());
-    for (const auto & t : a.tetrahedra)
-    {
-      tetrahedra.push_back({ sorted[t[0]], sorted[t[1]], sorted[t[2]], sorted[t[3]] });
-    }
+    tetrahedra = std::move(a.tetrahedra); // renumbered in place: no second copy of the mesh
+    for (auto & t : tetrahedra)
+      t = { sorted[t[0]], sorted[t[1]], sorted[t[2]], sorted[t[3]] };
   }
   else
   {
     tetrahedra = Tetrahedralize(points, a.scale);
   }
-  const Adjacency      adjacency(points.size(), tetrahedra);
+  std::vector<uint32_t>().swap(sorted);
+  const Adjacency adjacency(points.size(), tetrahedra);
+  std::vector<Tetrahedron>().swap(tetrahedra);
   std::vector<uint8_t> bytes;
   ArithmeticEncoder    encoder(bytes);
   EncodePositions(encoder, a.grid, points);

@@ -21,6 +21,7 @@
 #include "dcvRateControl.h"
 #include "dcvResidualLayer.h"
 #include "dcvInterSliceWavelet.h"
+#include "dcvMemory.h"
 
 #include <algorithm>
 #include <chrono>
@@ -354,9 +355,6 @@ TryCorners(const EncoderInput & input, const FileHeader & header, std::size_t fi
     search.Try({ Wavelet::Irreversible97, Arrangement::Mosaic, std::min(4, most) });
   else if (!(twoLevels < flat))
     search.Try({ Wavelet::Irreversible97, Arrangement::Components, 0 });
-  // The points' refinement runs beside it: two volumes of int32 less at its peak (the 5 mm CT series:
-  // 59 MB), for a decode more where the corners win.
-  search.Release();
   return candidate;
 }
 
@@ -565,6 +563,9 @@ Run(const EncoderInput & input, const EncoderOptions & o, bool coded, std::vecto
   r.timings.decimation = engine.GetTimings().decimation;
   r.timings.leastSquares = engine.GetTimings().leastSquares;
   owned.reset();
+  if (input.releaseSmoothed && input.smoothed != input.voxels)
+    input.releaseSmoothed();
+  ReturnFreedMemory(); // the engine's cells and heaps, for the residual layers' buffers
   if (layers)
   {
     cornersDone();

@@ -519,7 +519,7 @@ struct RefinementEngine::Impl
   CompactIfSparse()
   {
     const std::size_t live = liveCells;
-    if (mesh.NumberOfCellIds() < 2 * live + 4096)
+    if (2 * mesh.NumberOfCellIds() < 3 * live + 8192)
     {
       return;
     }

@@ -306,9 +306,17 @@ TEST(Encoder, SparesTheBilateralFilterWhenTheEngineWouldDropIStar)
   std::mt19937 random(3);
   for (itk::ImageRegionIteratorWithIndex<ImageType> it(image, image->GetBufferedRegion()); !it.IsAtEnd(); ++it)
     it.Set(uint8_t(std::clamp(int(it.Get()) + int(random() % 61) - 30, 0, 255)));
-  const itk::DCVEncoderInput<ImageType> used(image.GetPointer(), options);
+  itk::DCVEncoderInput<ImageType> used(image.GetPointer(), options);
   EXPECT_NE(used.Get().smoothed, used.Get().voxels);
   EXPECT_EQ(used.GetEstimatedSmoothedPSNR(), 0.0);
+
+  // I* freed once the points are done (for the residual layers' buffers): the same file, and an input
+  // whose I* is gone is refused, not read.
+  const std::vector<uint8_t> kept = dcv::Encode(used.Get(), options).bytes;
+  used.ReleaseSmoothedWhenDone();
+  EXPECT_EQ(dcv::Encode(used.Get(), options).bytes, kept);
+  EXPECT_EQ(used.Get().smoothed, nullptr);
+  EXPECT_THROW(dcv::Encode(used.Get(), options), std::invalid_argument);
 }
 
 TEST(Encoder, AbandonsThePointsWhereTheResidualLayerWinsByFar)

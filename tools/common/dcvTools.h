@@ -215,18 +215,18 @@ private:
 void
 WriteOutputBytes(const std::string & output, const std::vector<uint8_t> & bytes, bool force);
 
-/** Writes an image (gzip compressed where the format allows) through a PendingOutput, so that a
- * failure never leaves a partial or empty file under the output's name; `force`: an existing file may
- * be replaced. */
+/** Writes an image (gzip compressed where the format allows, unless `compression` is false) through a
+ * PendingOutput, so that a failure never leaves a partial or empty file under the output's name; `force`:
+ * an existing file may be replaced. */
 template <typename TImage>
 void
-WriteVolume(const TImage * image, const std::string & output, bool force)
+WriteVolume(const TImage * image, const std::string & output, bool force, bool compression = true)
 {
   PendingOutput pending(output, force, true);
   auto          writer = itk::ImageFileWriter<TImage>::New();
   writer->SetInput(image);
   writer->SetFileName(pending.Path());
-  writer->UseCompressionOn();
+  writer->SetUseCompression(compression);
   try
   {
     writer->Update();
@@ -296,7 +296,7 @@ DecodeVolume(const CompressedFile & file, TFunction && f, const DecodeLimits & l
 #define DCV_TOOLS_INSTANTIATION(EXTERN, T)                                                                             \
   EXTERN template itk::Image<T, 3>::Pointer ReadVolume<T>(const std::string &);                                        \
   EXTERN template itk::Image<T, 3>::Pointer ReadVolume<T>(const VolumeInput &);                                        \
-  EXTERN template void                      WriteVolume(const itk::Image<T, 3> *, const std::string &, bool);          \
+  EXTERN template void WriteVolume(const itk::Image<T, 3> *, const std::string &, bool, bool);                         \
   EXTERN template itk::Image<T, 3>::Pointer DecodeImage<T>(const CompressedFile &, const DecodeLimits &)
 
 // ITK's readers (a file, a DICOM series) and writers for the .dcv pixel types are compiled once, in

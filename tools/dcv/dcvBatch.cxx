@@ -130,9 +130,9 @@ CompressItem(const Item & item, const fs::path & outputDir, const EncoderOptions
     options.progress = progress;
     EncoderResult r;
     VisitPixelType(volume.type, [&](auto pixel) {
-      const auto image = ReadVolume<decltype(pixel)>(volume);
+      auto image = ReadVolume<decltype(pixel)>(volume);
       CheckFiniteVoxels(image.GetPointer(), item.path);
-      r = itk::DCVEncode(image.GetPointer(), options);
+      r = itk::DCVEncode(std::move(image), options); // freed once copied
     });
     // Replacing is allowed: an existing file here is damaged (a valid one was skipped) or --force.
     WriteOutputBytes(output, r.bytes, true);

@@ -45,7 +45,7 @@ Compress(const CompressOptions & c)
     options.metadata.insert(options.metadata.begin(), volume.metadata.begin(), volume.metadata.end());
     try
     {
-      r = itk::DCVEncode(image.GetPointer(), options);
+      r = itk::DCVEncode(std::move(image), options); // freed once copied: the volume's bytes less at the peak
     }
     catch (const itk::ExceptionObject & e)
     {

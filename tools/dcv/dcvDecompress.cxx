@@ -33,6 +33,7 @@ struct DecompressOptions
   bool         force{ false };
   bool         quiet{ false };
   bool         dicom{ false };
+  bool         noCompression{ false };
   DecodeLimits limits;
 };
 
@@ -51,7 +52,7 @@ Decompress(const DecompressOptions & d)
     [&](auto image) {
       if (!d.dicom)
       {
-        WriteVolume(image.GetPointer(), d.output, d.force);
+        WriteVolume(image.GetPointer(), d.output, d.force, !d.noCompression);
         return;
       }
       const std::size_t sliceVoxels = std::size_t(file.header.size.x) * std::size_t(file.header.size.y);
@@ -86,6 +87,10 @@ const RegisterCommand decompress{
                        d->dicom,
                        "OUTPUT is a directory: write a DICOM series (one file per slice, a derived lossy series "
                        "of the original study)");
+      command.add_flag("--no-compression",
+                       d->noCompression,
+                       "Write OUTPUT without gzip where the format has it (.nrrd, .mha): larger, and faster to "
+                       "write and to read");
       command.add_flag("--quiet,-q", d->quiet, "Print nothing but errors");
       return [d] { Decompress(*d); };
     } }
