@@ -389,6 +389,14 @@ TEST_F(CommandLine, DecompressWritesCompressedVolumes)
   ASSERT_EQ(RunDcv("decompress " + Path("p.dcv") + " " + Path("d.nrrd")).status, 0);
   EXPECT_NE(dcv::test::FileBytes(Path("d.nrrd")).find("encoding: gzip"), std::string::npos);
   EXPECT_LT(fs::file_size(Path("d.nrrd")), 40u * 40 * 40 / 2);
+  // --no-compression: raw, the same voxels.
+  ASSERT_EQ(RunDcv("decompress " + Path("p.dcv") + " " + Path("r.nrrd") + " --no-compression").status, 0);
+  EXPECT_NE(dcv::test::FileBytes(Path("r.nrrd")).find("encoding: raw"), std::string::npos);
+  EXPECT_GT(fs::file_size(Path("r.nrrd")), 40u * 40 * 40);
+  using ImageType = itk::Image<uint8_t, 3>;
+  const auto gz = itk::ReadImage<ImageType>(Path("d.nrrd"));
+  const auto raw = itk::ReadImage<ImageType>(Path("r.nrrd"));
+  EXPECT_TRUE(std::equal(gz->GetBufferPointer(), gz->GetBufferPointer() + 40 * 40 * 40, raw->GetBufferPointer()));
 }
 
 TEST_F(CommandLine, AFailedWriteLeavesNoFile)

@@ -319,6 +319,34 @@ TEST(Encoder, SparesTheBilateralFilterWhenTheEngineWouldDropIStar)
   EXPECT_THROW(dcv::Encode(used.Get(), options), std::invalid_argument);
 }
 
+// DCVEncode taking the caller's reference frees the image once the encoder has its copy and I*, before
+// the method runs, and writes the same file.
+TEST(Encoder, FreesTheImageItWasHandedOnceCopied)
+{
+  auto image = ImageType::New();
+  image->SetRegions(itk::Size<3>{ { 32, 30, 12 } });
+  image->Allocate();
+  std::mt19937 random(7);
+  for (itk::ImageRegionIteratorWithIndex<ImageType> it(image, image->GetBufferedRegion()); !it.IsAtEnd(); ++it)
+    it.Set(uint8_t(100 + 60 * std::sin(0.2 * double(it.GetIndex()[0] + it.GetIndex()[2])) + int(random() % 9)));
+  dcv::EncoderOptions options;
+  options.bitsPerVoxel = 0.25;
+  const std::vector<uint8_t> kept = itk::DCVEncode(image.GetPointer(), options).bytes;
+  bool freed = false, freedBeforeTheMethod = false;
+  auto deleted = itk::CStyleCommand::New();
+  // Deletion calls the const callback (UnRegister is const).
+  deleted->SetConstCallback(
+    [](const itk::Object *, const itk::EventObject &, void * flag) { *static_cast<bool *>(flag) = true; });
+  deleted->SetClientData(&freed);
+  image->AddObserver(itk::DeleteEvent(), deleted);
+  options.progress = [&](double) { freedBeforeTheMethod = freedBeforeTheMethod || freed; };
+  const std::vector<uint8_t> handed = itk::DCVEncode(std::move(image), options).bytes;
+  EXPECT_TRUE(freed);
+  EXPECT_TRUE(freedBeforeTheMethod) << "the image lived through the encoding";
+  EXPECT_EQ(image, nullptr);
+  EXPECT_EQ(handed, kept);
+}
+
 TEST(Encoder, AbandonsThePointsWhereTheResidualLayerWinsByFar)
 {
   // Every slice the same fine texture: the inter-slice wavelet leaves one slice to code, the points
