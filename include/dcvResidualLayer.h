@@ -129,7 +129,8 @@ struct ResidualCoding
  * `maximumBytes` bytes (the codestream as stored, StoredLayerBytes(), and, with an inter-slice wavelet, its levels),
  * one coding at a time, so that the caller chooses the next coding from the errors so far; keeps the coding that
  * decodes closest, decoded as a decoder will. The spline is rasterized once (a constant one is filled), on the
- * encoder's threads; the residual samples for each encode (no volume of them is kept between). `voxels` must outlive it. */
+ * encoder's threads; the residual samples for each encode (no volume of them is kept between). `voxels` must outlive
+ * it. */
 class DelaunayCompression_EXPORT ResidualSearch
 {
 public:

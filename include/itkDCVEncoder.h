@@ -187,8 +187,8 @@ Run(const TImage * image, const dcv::EncoderOptions & options, TCall call, Smart
   if (owner)
     *owner = nullptr;
   input.ReleaseSmoothedWhenDone(); // for the residual layers' buffers (the 5 mm CT series: 29 MB)
-  dcv::EncoderOptions     o = options;
-  const double            engineStart = input.Get().smoothed ? 0.2 : 0.0;
+  dcv::EncoderOptions o = options;
+  const double        engineStart = input.Get().smoothed ? 0.2 : 0.0;
   if (options.progress)
   {
     options.progress(engineStart);

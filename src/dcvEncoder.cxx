@@ -389,7 +389,7 @@ ChooseLayers(const EncoderInput & input, std::size_t fileBytes, bool pointsAband
   // code-blocks). The first that fits is kept; where it leaves more than 0.3% of the file, the best
   // candidate tries to fill it (2 more encodes and decodes at most).
   const std::size_t slack = std::max<std::size_t>(8, 3 * fileBytes / 1000);
-  // Only the winner's layer is decoded again (Release()).
+  // Only the winner's layer is decoded again (Best()).
   auto keep = [&](ResidualSearch &        search,
                   Approximation &&        spline,
                   std::vector<uint8_t> && splinePayload,

@@ -429,9 +429,11 @@ TEST(ResidualLayer, SamplesComputedAgainCodeTheSameImage)
       const std::vector<int32_t> decoded = dcv::DecodeResidualLayer(best.codestream, g, "x", best.levels);
       EXPECT_EQ(best.samples, decoded);
       const std::vector<int32_t> direct = dcv::DecodeResidualLayer(
-        dcv::EncodeResidualLayer(residual, g, dcv::StoredLayerBytes(best.codestream, g), coding.wavelet,
-                                 coding.arrangement, coding.levels),
-        g, "y", coding.levels);
+        dcv::EncodeResidualLayer(
+          residual, g, dcv::StoredLayerBytes(best.codestream, g), coding.wavelet, coding.arrangement, coding.levels),
+        g,
+        "y",
+        coding.levels);
       double searchError = 0.0, directError = 0.0;
       for (std::size_t i = 0; i < residual.size(); ++i)
       {
@@ -448,7 +450,9 @@ TEST(ResidualLayer, SamplesComputedAgainCodeTheSameImage)
     {
       const std::vector<int32_t> decoded = dcv::DecodeResidualLayer(
         dcv::EncodeResidualLayer(residual, g, budget, coding.wavelet, coding.arrangement, coding.levels),
-        g, "z", coding.levels);
+        g,
+        "z",
+        coding.levels);
       double error = 0.0;
       for (std::size_t i = 0; i < residual.size(); ++i)
         error += double(residual[i] - decoded[i]) * double(residual[i] - decoded[i]);

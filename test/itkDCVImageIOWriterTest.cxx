@@ -332,8 +332,8 @@ TEST(Encoder, FreesTheImageItWasHandedOnceCopied)
   dcv::EncoderOptions options;
   options.bitsPerVoxel = 0.25;
   const std::vector<uint8_t> kept = itk::DCVEncode(image.GetPointer(), options).bytes;
-  bool freed = false, freedBeforeTheMethod = false;
-  auto deleted = itk::CStyleCommand::New();
+  bool                       freed = false, freedBeforeTheMethod = false;
+  auto                       deleted = itk::CStyleCommand::New();
   // Deletion calls the const callback (UnRegister is const).
   deleted->SetConstCallback(
     [](const itk::Object *, const itk::EventObject &, void * flag) { *static_cast<bool *>(flag) = true; });

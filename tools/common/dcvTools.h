@@ -296,7 +296,7 @@ DecodeVolume(const CompressedFile & file, TFunction && f, const DecodeLimits & l
 #define DCV_TOOLS_INSTANTIATION(EXTERN, T)                                                                             \
   EXTERN template itk::Image<T, 3>::Pointer ReadVolume<T>(const std::string &);                                        \
   EXTERN template itk::Image<T, 3>::Pointer ReadVolume<T>(const VolumeInput &);                                        \
-  EXTERN template void WriteVolume(const itk::Image<T, 3> *, const std::string &, bool, bool);                         \
+  EXTERN template void                      WriteVolume(const itk::Image<T, 3> *, const std::string &, bool, bool);    \
   EXTERN template itk::Image<T, 3>::Pointer DecodeImage<T>(const CompressedFile &, const DecodeLimits &)
 
 // ITK's readers (a file, a DICOM series) and writers for the .dcv pixel types are compiled once, in
