@@ -290,7 +290,8 @@ LayerRoom(const FileHeader & h, double step, std::size_t fileBytes, std::size_t 
   withLayer.residualStep = step;
   withLayer.residualLevels = 0;
   withLayer.residualLayer = { 0 };
-  const std::size_t used = SerializeFile(withLayer, std::vector<uint8_t>(payloadBytes)).size() - 1;
+  // The payload follows its fixed-size length as it is: measured without it, then added.
+  const std::size_t used = SerializeFile(withLayer, {}).size() - 1 + payloadBytes;
   return fileBytes > used ? fileBytes - used : 0;
 }
 
