@@ -926,7 +926,7 @@ NormalPattern(int n, const std::vector<int> & index, const std::vector<Tetrahedr
       start[std::size_t(index[v]) + 1] += 4;
   for (int c = 0; c < n; ++c)
     start[c + 1] += start[c];
-  std::vector<int> rows(std::size_t(start[n]));
+  std::vector<int> rows(static_cast<std::size_t>(start[n]));
   {
     std::vector<int> fill(start.begin(), start.end() - 1);
     for (const auto & c : cells)
