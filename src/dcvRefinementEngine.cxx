@@ -190,10 +190,9 @@ struct RefinementEngine::Impl
 
   // Per cell id.
   std::vector<double>   cellError;      // E(T) against I, Eq. 1
-  std::vector<double>   cellSelection;  // E(T) against I_c (the same as cellError once I_c = I)
+  std::vector<double>   cellSelection;  // E(T) against I_c while I_c = I* (empty once I_c = I: cellError)
   std::vector<float>    cellWorstError; // largest |I_c - L| over the cell's non-vertex voxels
   std::vector<uint64_t> cellWorstVoxel;
-  std::vector<uint64_t> cellVoxels;
   std::vector<double>   cellVolume; // six times the volume
   std::vector<char>     cellAlive;
   std::size_t           liveCells{ 0 }; // CGAL counts its cells in linear time
@@ -382,10 +381,12 @@ struct RefinementEngine::Impl
         v.resize(n);
       };
       grow(cellError);
-      grow(cellSelection);
+      if (selection != image)
+      {
+        grow(cellSelection);
+      }
       grow(cellWorstError);
       grow(cellWorstVoxel);
-      grow(cellVoxels);
       grow(cellVolume);
       grow(cellAlive);
     }
@@ -450,10 +451,12 @@ struct RefinementEngine::Impl
   {
     GrowCells(id);
     cellError[id] = s.sse;
-    cellSelection[id] = s.sseSelection;
+    if (selection != image)
+    {
+      cellSelection[id] = s.sseSelection;
+    }
     cellWorstError[id] = s.worst;
     cellWorstVoxel[id] = s.worstVoxel;
-    cellVoxels[id] = s.count;
     cellVolume[id] = s.volume;
     liveCells += cellAlive[id] ? 0 : 1;
     cellAlive[id] = 1;
@@ -529,6 +532,10 @@ struct RefinementEngine::Impl
       throw std::logic_error("RefinementEngine: live cells out of step with the tetrahedralization");
     }
     auto move = [&](auto & v) {
+      if (v.empty())
+      {
+        return; // cellSelection once I_c = I
+      }
       for (std::size_t old = 0; old < renumbered.size(); ++old)
       {
         if (renumbered[old] != NoCell)
@@ -543,15 +550,18 @@ struct RefinementEngine::Impl
     move(cellSelection);
     move(cellWorstError);
     move(cellWorstVoxel);
-    move(cellVoxels);
     move(cellVolume);
     move(cellAlive);
-    std::vector<HeapEntry> bySelection, byWorst;
+    // The old entries go first: the new ones come from the cells' state, not from them.
+    byCellError = CellHeap(ByKey{ &cellWorstVoxel });
+    byVoxelError = CellHeap(ByKey{ &cellWorstVoxel });
+    const std::vector<double> & selectionError = cellSelection.empty() ? cellError : cellSelection;
+    std::vector<HeapEntry>      bySelection, byWorst;
     for (uint32_t c = 0; c < live; ++c)
     {
       if (cellWorstVoxel[c] != NoVoxel)
       {
-        bySelection.push_back(HeapEntry{ cellSelection[c], c });
+        bySelection.push_back(HeapEntry{ selectionError[c], c });
         byWorst.push_back(HeapEntry{ cellWorstError[c], c });
       }
     }
@@ -559,28 +569,44 @@ struct RefinementEngine::Impl
     byVoxelError = CellHeap(ByKey{ &cellWorstVoxel }, std::move(byWorst));
   }
 
-  // Positions in `cells` sorted by each cell's lowest vertex (z, then y, then x): visited in this order,
-  // cells read the image slice by slice instead of jumping through it in the order of their ids.
+  // Positions first to last - 1 of `cells` sorted by each cell's lowest vertex (z, then y, then x): visited
+  // in this order, cells read the image slice by slice instead of jumping through it in the order of their ids.
   std::vector<uint32_t>
-  SpatialOrder(const std::vector<Tetrahedralization::Cell> & cells) const
+  SpatialOrder(const std::vector<Tetrahedralization::Cell> & cells, std::size_t first, std::size_t last) const
   {
-    std::vector<std::pair<uint64_t, uint32_t>> keyed(cells.size());
-    ParallelFor(cells.size(), 1024, [&](std::size_t i) {
+    std::vector<std::pair<uint64_t, uint32_t>> keyed(last - first);
+    ParallelFor(keyed.size(), 1024, [&](std::size_t k) {
       uint64_t key = ~uint64_t(0);
-      for (auto v : cells[i].vertices)
+      for (auto v : cells[first + k].vertices)
       {
         const GridPoint & q = mesh.Point(v);
         key = std::min(key, (uint64_t(q[2]) << 32) | (uint64_t(q[1]) << 16) | uint64_t(q[0]));
       }
-      keyed[i] = { key, uint32_t(i) };
+      keyed[k] = { key, uint32_t(first + k) };
     });
     std::sort(keyed.begin(), keyed.end());
-    std::vector<uint32_t> order(cells.size());
+    std::vector<uint32_t> order(keyed.size());
     for (std::size_t k = 0; k < order.size(); ++k)
     {
       order[k] = keyed[k].second;
     }
     return order;
+  }
+
+  // Calls f(first, last, order) for consecutive ranges of positions in `cells`, order being the range's
+  // positions in SpatialOrder. Callers work a range on the threads, then use its results in position
+  // order: the same results as for the whole list at once, without holding a result for every cell
+  // (48 to 112 bytes a cell: gigabytes at millions of cells).
+  template <typename F>
+  void
+  ForEachChunk(const std::vector<Tetrahedralization::Cell> & cells, F && f) const
+  {
+    constexpr std::size_t chunk = std::size_t(1) << 18;
+    for (std::size_t first = 0; first < cells.size(); first += chunk)
+    {
+      const std::size_t last = std::min(cells.size(), first + chunk);
+      f(first, last, SpatialOrder(cells, first, last));
+    }
   }
 
   // Recomputes every live cell (after the selection image or the values changed): scanned in
@@ -593,13 +619,15 @@ struct RefinementEngine::Impl
     squaredError = 0.0;
     std::fill(removalCostValid.begin(), removalCostValid.end(), 0);
     const auto            cells = mesh.FiniteCells();
-    const auto            order = SpatialOrder(cells);
-    std::vector<CellScan> scans(cells.size());
-    ParallelFor(cells.size(), 64, [&](std::size_t k) { scans[order[k]] = Scan(cells[order[k]]); });
-    for (std::size_t i = 0; i < cells.size(); ++i)
-    {
-      Commit(cells[i].id, scans[i]);
-    }
+    std::vector<CellScan> scans;
+    ForEachChunk(cells, [&](std::size_t first, std::size_t last, const std::vector<uint32_t> & order) {
+      scans.resize(last - first);
+      ParallelFor(order.size(), 64, [&](std::size_t k) { scans[order[k] - first] = Scan(cells[order[k]]); });
+      for (std::size_t i = first; i < last; ++i)
+      {
+        Commit(cells[i].id, scans[i - first]);
+      }
+    });
   }
 
   // Top live cell of a heap, or NoCell when none is left.
@@ -630,6 +658,7 @@ struct RefinementEngine::Impl
     if (selection != image && PSNROf(squaredError) >= parameters.alpha * smoothedPSNR)
     {
       selection = image; // I_c = I from now on (section 3)
+      std::vector<double>().swap(cellSelection);
       RescanAll();
     }
     return true;
@@ -916,54 +945,73 @@ RefinementEngine::SetQuantizationStep(double step)
 namespace
 {
 /** The pattern of the normal equations' sparse matrix, its values 0: each vertex and the vertices it
- * shares a cell with (column c holds the rows of c's cells' vertices, sorted; the matrix is symmetric). */
+ * shares a cell with (column c holds the rows of c's cells' vertices, sorted; the matrix is symmetric).
+ * Built from the cells of each vertex (4 ints a cell), each column's rows marked once. */
 Eigen::SparseMatrix<double>
 NormalPattern(int n, const std::vector<int> & index, const std::vector<Tetrahedralization::Cell> & cells)
 {
-  std::vector<int> start(std::size_t(n) + 1, 0);
+  std::vector<int> first(std::size_t(n) + 1, 0);
   for (const auto & c : cells)
     for (auto v : c.vertices)
-      start[std::size_t(index[v]) + 1] += 4;
+      ++first[std::size_t(index[v]) + 1];
   for (int c = 0; c < n; ++c)
-    start[c + 1] += start[c];
-  std::vector<int> rows(static_cast<std::size_t>(start[n]));
+    first[c + 1] += first[c];
+  std::vector<uint32_t> incident(static_cast<std::size_t>(first[n]));
   {
-    std::vector<int> fill(start.begin(), start.end() - 1);
-    for (const auto & c : cells)
-      for (auto v : c.vertices)
-        for (auto w : c.vertices)
-          rows[std::size_t(fill[index[v]]++)] = index[w];
+    std::vector<int> fill(first.begin(), first.end() - 1);
+    for (std::size_t i = 0; i < cells.size(); ++i)
+      for (auto v : cells[i].vertices)
+        incident[std::size_t(fill[index[v]]++)] = uint32_t(i);
   }
-  int nonZeros = 0;
-  for (int c = 0; c < n; ++c)
-  {
-    const auto first = rows.begin() + start[c], last = rows.begin() + start[c + 1];
-    std::sort(first, last);
-    const auto end = std::unique(first, last);
-    start[c] = nonZeros;
-    nonZeros = int(std::copy(first, end, rows.begin() + nonZeros) - rows.begin());
-  }
-  start[n] = nonZeros;
   Eigen::SparseMatrix<double> M(n, n);
-  M.resizeNonZeros(nonZeros);
-  std::copy(start.begin(), start.end(), M.outerIndexPtr());
-  std::copy_n(rows.begin(), nonZeros, M.innerIndexPtr());
-  std::fill_n(M.valuePtr(), nonZeros, 0.0);
+  int * const                 outer = M.outerIndexPtr();
+  std::vector<int>            mark(std::size_t(n), -1);
+  // Calls row(r) for each row of column c once: the first visit of r in c marks it.
+  auto forEachRow = [&](int c, auto && row) {
+    for (int k = first[c]; k < first[c + 1]; ++k)
+      for (auto w : cells[incident[std::size_t(k)]].vertices)
+      {
+        const int r = index[w];
+        if (mark[std::size_t(r)] != c)
+        {
+          mark[std::size_t(r)] = c;
+          row(r);
+        }
+      }
+  };
+  outer[0] = 0;
+  for (int c = 0; c < n; ++c)
+  {
+    int count = 0;
+    forEachRow(c, [&](int) { ++count; });
+    outer[c + 1] = outer[c] + count;
+  }
+  M.resizeNonZeros(outer[n]);
+  int * const inner = M.innerIndexPtr();
+  std::fill(mark.begin(), mark.end(), -1);
+  for (int c = 0; c < n; ++c)
+  {
+    int at = outer[c];
+    forEachRow(c, [&](int r) { inner[at++] = r; });
+    std::sort(inner + outer[c], inner + at);
+  }
+  std::fill_n(M.valuePtr(), outer[n], 0.0);
   return M;
 }
 
-/** Adds each cell's block (the upper triangle of its 4x4, by rows) into M, in cell order, then j, then
- * k: the very sums (term by term, in the same order) of Eigen's setFromTriplets over 16 triplets a cell,
- * without the triplets (16 x 16 bytes a cell) and the transposed copy it sorts them in: gigabytes at
- * 0.25 bpv on norm-256. */
+/** Adds the blocks of cells first to last - 1 (the upper triangle of each cell's 4x4, by rows; blocks[0]
+ * is cell `first`'s) into M, in cell order, then j, then k: the very sums (term by term, in the same
+ * order) of Eigen's setFromTriplets over 16 triplets a cell, without the triplets (16 x 16 bytes a cell)
+ * and the transposed copy it sorts them in: gigabytes at 0.25 bpv on norm-256. */
 void
 AddCellBlocks(Eigen::SparseMatrix<double> & M, const std::vector<int> & index,
-              const std::vector<Tetrahedralization::Cell> & cells, const std::vector<std::array<double, 10>> & blocks)
+              const std::vector<Tetrahedralization::Cell> & cells, std::size_t first, std::size_t last,
+              const std::vector<std::array<double, 10>> & blocks)
 {
   const int *    outer = M.outerIndexPtr();
   const int *    inner = M.innerIndexPtr();
   double * const value = M.valuePtr();
-  for (std::size_t i = 0; i < cells.size(); ++i)
+  for (std::size_t i = first; i < last; ++i)
   {
     const auto & v = cells[i].vertices;
     for (int j = 0; j < 4; ++j)
@@ -973,7 +1021,7 @@ AddCellBlocks(Eigen::SparseMatrix<double> & M, const std::vector<int> & index,
         const int row = index[v[j]], column = index[v[k]];
         const int at = int(std::lower_bound(inner + outer[column], inner + outer[column + 1], row) - inner);
         const int lo = std::min(j, k), hi = std::max(j, k);
-        value[at] += blocks[i][lo * 4 - lo * (lo + 1) / 2 + hi];
+        value[at] += blocks[i - first][lo * 4 - lo * (lo + 1) / 2 + hi];
       }
     }
   }
@@ -1002,80 +1050,83 @@ RefinementEngine::OptimizeValues()
     }
     // Normal equations of min sum_x (I(x) - sum_k v_k phi_k(x))^2: M_jk = sum phi_j phi_k, b_j = sum I phi_j.
     // Each cell's 4x4 block (its upper triangle) and 4 right-hand-side terms on a thread into its own
-    // slots; M and b are then summed in cell order.
-    // The pattern first: its transient (16 ints a cell) before the blocks exist.
+    // slots, a chunk of cells at a time; M and b are then summed in cell order.
     Eigen::SparseMatrix<double>         M = NormalPattern(n, index, cells);
-    std::vector<std::array<double, 10>> blocks(cells.size());
-    std::vector<std::array<double, 4>>  rhs(cells.size());
-    const auto                          order = d.SpatialOrder(cells);
-    ParallelFor(cells.size(), 64, [&](std::size_t o) {
-      const std::size_t        i = order[o];
-      const auto &             c = cells[i];
-      std::array<GridPoint, 4> p;
-      for (int k = 0; k < 4; ++k)
-      {
-        p[k] = d.mesh.Point(c.vertices[k]);
-      }
-      std::array<LinearFunction, 3> phi;
-      for (int k = 0; k < 3; ++k)
-      {
-        std::array<double, 4> unit{ 0, 0, 0, 0 };
-        unit[k] = 1.0;
-        phi[k] = LinearFunction(CanonicalTetrahedron(p, unit));
-      }
-      double m[4][4] = {};
-      double r[4] = {};
-      // Along a row each weight is a + g u (u = x - x0), so a row adds a_j a_k count + (a_j g_k + a_k g_j)
-      // sum u + g_j g_k sum u^2 to M_jk and a_j sum I + g_j sum u I to b_j: the voxels are read for sum I
-      // and sum u I only (sum u and sum u^2 are closed forms, exact). The same values as summing w_j w_k
-      // per voxel up to rounding; the files of the dev volumes came out the same.
-      ForEachSpan(d.grid, p, [&](int32_t y, int32_t z, int32_t x0, int32_t x1) {
-        const float * row = d.image + d.grid.Offset(0, y, z);
-        PrefetchNextRows(row, d.grid, y, x0);
-        double sumI = 0.0, sumUI = 0.0;
-        for (int32_t x = x0; x <= x1; ++x)
+    Eigen::VectorXd                     b = Eigen::VectorXd::Zero(n);
+    std::vector<std::array<double, 10>> blocks;
+    std::vector<std::array<double, 4>>  rhs;
+    d.ForEachChunk(cells, [&](std::size_t first, std::size_t last, const std::vector<uint32_t> & order) {
+      blocks.resize(last - first);
+      rhs.resize(last - first);
+      ParallelFor(order.size(), 64, [&](std::size_t o) {
+        const std::size_t        i = order[o];
+        const auto &             c = cells[i];
+        std::array<GridPoint, 4> p;
+        for (int k = 0; k < 4; ++k)
         {
-          const double value = double(row[x]);
-          sumI += value;
-          sumUI += double(x - x0) * value;
+          p[k] = d.mesh.Point(c.vertices[k]);
         }
-        const double count = double(x1 - x0 + 1);
-        const double sumU = count * (count - 1.0) / 2.0;
-        const double sumUU = (count - 1.0) * count * (2.0 * count - 1.0) / 6.0;
-        double       a[4], g[4];
+        std::array<LinearFunction, 3> phi;
         for (int k = 0; k < 3; ++k)
         {
-          a[k] = phi[k](x0, y, z);
-          g[k] = phi[k].gx;
+          std::array<double, 4> unit{ 0, 0, 0, 0 };
+          unit[k] = 1.0;
+          phi[k] = LinearFunction(CanonicalTetrahedron(p, unit));
         }
-        a[3] = 1.0 - a[0] - a[1] - a[2];
-        g[3] = -(g[0] + g[1] + g[2]);
-        for (int j = 0; j < 4; ++j)
-        {
-          r[j] += a[j] * sumI + g[j] * sumUI;
-          for (int k = j; k < 4; ++k)
+        double m[4][4] = {};
+        double r[4] = {};
+        // Along a row each weight is a + g u (u = x - x0), so a row adds a_j a_k count + (a_j g_k + a_k g_j)
+        // sum u + g_j g_k sum u^2 to M_jk and a_j sum I + g_j sum u I to b_j: the voxels are read for sum I
+        // and sum u I only (sum u and sum u^2 are closed forms, exact). The same values as summing w_j w_k
+        // per voxel up to rounding; the files of the dev volumes came out the same.
+        ForEachSpan(d.grid, p, [&](int32_t y, int32_t z, int32_t x0, int32_t x1) {
+          const float * row = d.image + d.grid.Offset(0, y, z);
+          PrefetchNextRows(row, d.grid, y, x0);
+          double sumI = 0.0, sumUI = 0.0;
+          for (int32_t x = x0; x <= x1; ++x)
           {
-            m[j][k] += a[j] * a[k] * count + (a[j] * g[k] + a[k] * g[j]) * sumU + g[j] * g[k] * sumUU;
+            const double value = double(row[x]);
+            sumI += value;
+            sumUI += double(x - x0) * value;
           }
+          const double count = double(x1 - x0 + 1);
+          const double sumU = count * (count - 1.0) / 2.0;
+          const double sumUU = (count - 1.0) * count * (2.0 * count - 1.0) / 6.0;
+          double       a[4], g[4];
+          for (int k = 0; k < 3; ++k)
+          {
+            a[k] = phi[k](x0, y, z);
+            g[k] = phi[k].gx;
+          }
+          a[3] = 1.0 - a[0] - a[1] - a[2];
+          g[3] = -(g[0] + g[1] + g[2]);
+          for (int j = 0; j < 4; ++j)
+          {
+            r[j] += a[j] * sumI + g[j] * sumUI;
+            for (int k = j; k < 4; ++k)
+            {
+              m[j][k] += a[j] * a[k] * count + (a[j] * g[k] + a[k] * g[j]) * sumU + g[j] * g[k] * sumUU;
+            }
+          }
+        });
+        for (int j = 0, e = 0; j < 4; ++j)
+        {
+          rhs[i - first][j] = r[j];
+          for (int k = j; k < 4; ++k)
+            blocks[i - first][e++] = m[j][k];
         }
       });
-      for (int j = 0, e = 0; j < 4; ++j)
+      for (std::size_t i = first; i < last; ++i)
       {
-        rhs[i][j] = r[j];
-        for (int k = j; k < 4; ++k)
-          blocks[i][e++] = m[j][k];
+        for (int j = 0; j < 4; ++j)
+        {
+          b[index[cells[i].vertices[j]]] += rhs[i - first][j];
+        }
       }
+      AddCellBlocks(M, index, cells, first, last, blocks);
     });
-    Eigen::VectorXd b = Eigen::VectorXd::Zero(n);
-    for (std::size_t i = 0; i < cells.size(); ++i)
-    {
-      for (int j = 0; j < 4; ++j)
-      {
-        b[index[cells[i].vertices[j]]] += rhs[i][j];
-      }
-    }
-    AddCellBlocks(M, index, cells, blocks);
     std::vector<std::array<double, 10>>().swap(blocks);
+    std::vector<std::array<double, 4>>().swap(rhs);
     Eigen::VectorXd current(n);
     for (VertexId v = 0; v < index.size(); ++v)
     {
@@ -1217,7 +1268,7 @@ RefinementEngine::GetCellStatistics() const
   std::vector<CellStatistics> out;
   for (const auto & c : d.mesh.FiniteCells())
   {
-    out.push_back(CellStatistics{ c.id, d.cellVoxels[c.id], d.cellError[c.id] });
+    out.push_back(CellStatistics{ c.id, d.Scan(c).count, d.cellError[c.id] });
   }
   return out;
 }
