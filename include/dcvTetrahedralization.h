@@ -76,9 +76,9 @@ public:
   void
   Remove(VertexId v, std::vector<CellId> & killed, std::vector<Cell> & created);
 
-  /** Identifiers of the finite cells incident to a vertex. */
+  /** The finite cells incident to a vertex. */
   void
-  IncidentCells(VertexId v, std::vector<CellId> & cells) const;
+  IncidentCells(VertexId v, std::vector<Cell> & cells) const;
 
   /** Renumbers the live finite cells 0, 1, ... in the order of their current ids (ids are never reused,
    * so without this the per-id state of a long run grows with every cell ever created). Returns the

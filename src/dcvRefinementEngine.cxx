@@ -44,23 +44,28 @@ constexpr uint32_t NumberOfCorners = 8; // vertex ids 0-7, never removed
  * which varies from run to run, and the encoder must be reproducible. The voxel is the cell's
  * cellWorstVoxel, read by the order (ByKey) instead of stored: 16 bytes an entry instead of 24, and
  * the heaps hold one or two entries for each cell id. */
+#pragma pack(push, 4)
+template <typename TKey>
 struct HeapEntry
 {
-  double   key;
+  TKey     key; // a cell's error (double: 12 bytes an entry, packed) or worst voxel error (float: 8 bytes)
   uint32_t cell;
 };
+#pragma pack(pop)
 
 /** The heaps' order: the key, then the lower worst voxel of the entry's cell. */
 struct ByKey
 {
   const std::vector<uint64_t> * worstVoxel;
+  template <typename TKey>
   bool
-  operator()(const HeapEntry & a, const HeapEntry & b) const
+  operator()(const HeapEntry<TKey> & a, const HeapEntry<TKey> & b) const
   {
     return a.key < b.key || (a.key == b.key && (*worstVoxel)[a.cell] > (*worstVoxel)[b.cell]);
   }
 };
-using CellHeap = std::priority_queue<HeapEntry, std::vector<HeapEntry>, ByKey>;
+template <typename TKey>
+using CellHeap = std::priority_queue<HeapEntry<TKey>, std::vector<HeapEntry<TKey>>, ByKey>;
 
 /** Min-heap entry of the decimation: removal cost of a vertex, valid while its stamp is current. */
 struct RemovalEntry
@@ -193,12 +198,11 @@ struct RefinementEngine::Impl
   std::vector<double>   cellSelection;  // E(T) against I_c while I_c = I* (empty once I_c = I: cellError)
   std::vector<float>    cellWorstError; // largest |I_c - L| over the cell's non-vertex voxels
   std::vector<uint64_t> cellWorstVoxel;
-  std::vector<double>   cellVolume; // six times the volume
   std::vector<char>     cellAlive;
   std::size_t           liveCells{ 0 }; // CGAL counts its cells in linear time
 
-  CellHeap byCellError{ ByKey{ &cellWorstVoxel } };  // MaxTetrahedronErrorPosition
-  CellHeap byVoxelError{ ByKey{ &cellWorstVoxel } }; // MaxErrorPosition
+  CellHeap<double> byCellError{ ByKey{ &cellWorstVoxel } };  // MaxTetrahedronErrorPosition
+  CellHeap<float>  byVoxelError{ ByKey{ &cellWorstVoxel } }; // MaxErrorPosition
 
   std::vector<uint64_t> isVertex;                   // one bit per voxel
   uint64_t              meshVersion{ 0 };           // counts insertions and removals
@@ -301,9 +305,9 @@ struct RefinementEngine::Impl
     values[id] = ChooseValue(id, voxel);
     ScanCreated();
     double volume = 0.0;
-    for (const auto & c : created)
+    for (std::size_t i = 0; i < created.size(); ++i)
     {
-      volume += cellVolume[c.id];
+      volume += scans[i].volume;
     }
     volumeBefore[id] = volume;
   }
@@ -387,7 +391,6 @@ struct RefinementEngine::Impl
       }
       grow(cellWorstError);
       grow(cellWorstVoxel);
-      grow(cellVolume);
       grow(cellAlive);
     }
   }
@@ -457,14 +460,13 @@ struct RefinementEngine::Impl
     }
     cellWorstError[id] = s.worst;
     cellWorstVoxel[id] = s.worstVoxel;
-    cellVolume[id] = s.volume;
     liveCells += cellAlive[id] ? 0 : 1;
     cellAlive[id] = 1;
     squaredError += s.sse;
     if (s.worstVoxel != NoVoxel)
     {
-      byCellError.push(HeapEntry{ s.sseSelection, id });
-      byVoxelError.push(HeapEntry{ s.worst, id });
+      byCellError.push(HeapEntry<double>{ s.sseSelection, id });
+      byVoxelError.push(HeapEntry<float>{ s.worst, id });
     }
   }
 
@@ -550,23 +552,23 @@ struct RefinementEngine::Impl
     move(cellSelection);
     move(cellWorstError);
     move(cellWorstVoxel);
-    move(cellVolume);
     move(cellAlive);
     // The old entries go first: the new ones come from the cells' state, not from them.
-    byCellError = CellHeap(ByKey{ &cellWorstVoxel });
-    byVoxelError = CellHeap(ByKey{ &cellWorstVoxel });
-    const std::vector<double> & selectionError = cellSelection.empty() ? cellError : cellSelection;
-    std::vector<HeapEntry>      bySelection, byWorst;
+    byCellError = CellHeap<double>(ByKey{ &cellWorstVoxel });
+    byVoxelError = CellHeap<float>(ByKey{ &cellWorstVoxel });
+    const std::vector<double> &    selectionError = cellSelection.empty() ? cellError : cellSelection;
+    std::vector<HeapEntry<double>> bySelection;
+    std::vector<HeapEntry<float>>  byWorst;
     for (uint32_t c = 0; c < live; ++c)
     {
       if (cellWorstVoxel[c] != NoVoxel)
       {
-        bySelection.push_back(HeapEntry{ selectionError[c], c });
-        byWorst.push_back(HeapEntry{ cellWorstError[c], c });
+        bySelection.push_back(HeapEntry<double>{ selectionError[c], c });
+        byWorst.push_back(HeapEntry<float>{ cellWorstError[c], c });
       }
     }
-    byCellError = CellHeap(ByKey{ &cellWorstVoxel }, std::move(bySelection));
-    byVoxelError = CellHeap(ByKey{ &cellWorstVoxel }, std::move(byWorst));
+    byCellError = CellHeap<double>(ByKey{ &cellWorstVoxel }, std::move(bySelection));
+    byVoxelError = CellHeap<float>(ByKey{ &cellWorstVoxel }, std::move(byWorst));
   }
 
   // Positions first to last - 1 of `cells` sorted by each cell's lowest vertex (z, then y, then x): visited
@@ -614,8 +616,8 @@ struct RefinementEngine::Impl
   void
   RescanAll()
   {
-    byCellError = CellHeap(ByKey{ &cellWorstVoxel });
-    byVoxelError = CellHeap(ByKey{ &cellWorstVoxel });
+    byCellError = CellHeap<double>(ByKey{ &cellWorstVoxel });
+    byVoxelError = CellHeap<float>(ByKey{ &cellWorstVoxel });
     squaredError = 0.0;
     std::fill(removalCostValid.begin(), removalCostValid.end(), 0);
     const auto            cells = mesh.FiniteCells();
@@ -631,8 +633,9 @@ struct RefinementEngine::Impl
   }
 
   // Top live cell of a heap, or NoCell when none is left.
+  template <typename TKey>
   static uint32_t
-  Top(CellHeap & heap, const std::vector<char> & alive)
+  Top(CellHeap<TKey> & heap, const std::vector<char> & alive)
   {
     while (!heap.empty() && !alive[heap.top().cell])
     {
@@ -648,7 +651,7 @@ struct RefinementEngine::Impl
     CompactIfSparse();
     // Silva: odd steps take the globally worst voxel, even steps the worst voxel of the worst cell.
     const bool     global = (step % 2) == 0;
-    const uint32_t cell = Top(global ? byVoxelError : byCellError, cellAlive);
+    const uint32_t cell = global ? Top(byVoxelError, cellAlive) : Top(byCellError, cellAlive);
     if (cell == NoCell || cellWorstError[cell] <= 0.0f)
     {
       return false;
@@ -667,14 +670,18 @@ struct RefinementEngine::Impl
   double
   RemovalCost(VertexId v)
   {
-    static thread_local std::vector<Tetrahedralization::CellId> incident;
+    static thread_local std::vector<Tetrahedralization::Cell> incident;
     mesh.IncidentCells(v, incident);
     // Summed in a fixed order (CGAL lists incident cells in memory order), for reproducible keys.
     static thread_local std::vector<std::pair<double, double>> terms;
     terms.clear();
-    for (auto c : incident)
+    for (const auto & c : incident)
     {
-      terms.emplace_back(cellError[c], cellVolume[c]);
+      // Six times the volume, as Scan() gives it (exact integers: the order of the vertices does not matter).
+      const std::array<GridPoint, 4> p{
+        mesh.Point(c.vertices[0]), mesh.Point(c.vertices[1]), mesh.Point(c.vertices[2]), mesh.Point(c.vertices[3])
+      };
+      terms.emplace_back(cellError[c.id], double(std::abs(SignedVolume6(p))));
     }
     std::sort(terms.begin(), terms.end());
     double error = 0.0, volume = 0.0;
@@ -1037,7 +1044,7 @@ RefinementEngine::OptimizeValues()
   // requantize the values on one mesh, reuse it.
   if (d.solvedMesh != d.meshVersion)
   {
-    const auto cells = d.mesh.FiniteCells();
+    auto cells = d.mesh.FiniteCells();
     // Compact indices of the live vertices.
     std::vector<int> index(d.mesh.NumberOfVertexIds(), -1);
     int              n = 0;
@@ -1125,8 +1132,10 @@ RefinementEngine::OptimizeValues()
       }
       AddCellBlocks(M, index, cells, first, last, blocks);
     });
+    // Gone before the solver's vectors come.
     std::vector<std::array<double, 10>>().swap(blocks);
     std::vector<std::array<double, 4>>().swap(rhs);
+    std::vector<Tetrahedralization::Cell>().swap(cells);
     Eigen::VectorXd current(n);
     for (VertexId v = 0; v < index.size(); ++v)
     {

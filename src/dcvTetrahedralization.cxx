@@ -250,7 +250,7 @@ Tetrahedralization::Remove(VertexId id, std::vector<CellId> & killed, std::vecto
 }
 
 void
-Tetrahedralization::IncidentCells(VertexId id, std::vector<CellId> & out) const
+Tetrahedralization::IncidentCells(VertexId id, std::vector<Cell> & out) const
 {
   Impl & d = *m_Impl;
   out.clear();
@@ -260,7 +260,8 @@ Tetrahedralization::IncidentCells(VertexId id, std::vector<CellId> & out) const
   {
     if (c->info().id != NoCell)
     {
-      out.push_back(c->info().id);
+      out.push_back(Cell{ c->info().id,
+                          { c->vertex(0)->info(), c->vertex(1)->info(), c->vertex(2)->info(), c->vertex(3)->info() } });
     }
   }
 }
@@ -277,6 +278,10 @@ Tetrahedralization::CompactCellIds()
   }
   std::sort(live.begin(), live.end(), [](const auto & a, const auto & b) { return a.first < b.first; });
   std::vector<CellId> renumbered(d.cells.size(), NoCell);
+  // Room for the ids to come up to the next compaction (at 1.5 times the live cells, see
+  // RefinementEngine), not the doubling of push_back: 8 bytes an id.
+  std::vector<CellHandle>().swap(d.cells);
+  d.cells.reserve(live.size() + live.size() / 2 + 8192);
   d.cells.resize(live.size());
   for (std::size_t i = 0; i < live.size(); ++i)
   {
