@@ -449,8 +449,9 @@ struct RefinementEngine::Impl
   }
 
   // Records a scanned cell as live: its state, the error total and the heaps.
+  // push: false where the heaps are rebuilt from the cells' state afterwards (RebuildHeaps).
   void
-  Commit(uint32_t id, const CellScan & s)
+  Commit(uint32_t id, const CellScan & s, bool push = true)
   {
     GrowCells(id);
     cellError[id] = s.sse;
@@ -463,7 +464,7 @@ struct RefinementEngine::Impl
     liveCells += cellAlive[id] ? 0 : 1;
     cellAlive[id] = 1;
     squaredError += s.sse;
-    if (s.worstVoxel != NoVoxel)
+    if (push && s.worstVoxel != NoVoxel)
     {
       byCellError.push(HeapEntry<double>{ s.sseSelection, id });
       byVoxelError.push(HeapEntry<float>{ s.worst, id });
@@ -553,15 +554,27 @@ struct RefinementEngine::Impl
     move(cellWorstError);
     move(cellWorstVoxel);
     move(cellAlive);
-    // The old entries go first: the new ones come from the cells' state, not from them.
+    RebuildHeaps();
+  }
+
+  // The heaps made anew from the live cells' state (the old entries freed first), with room for the
+  // entries to come up to the next compaction (a push beyond a vector's capacity doubles it). Live cells
+  // own disjoint voxels, so no two entries tie on the key and the worst voxel: the heaps pop the same
+  // cells whether built at once or entry by entry.
+  void
+  RebuildHeaps()
+  {
     byCellError = CellHeap<double>(ByKey{ &cellWorstVoxel });
     byVoxelError = CellHeap<float>(ByKey{ &cellWorstVoxel });
     const std::vector<double> &    selectionError = cellSelection.empty() ? cellError : cellSelection;
+    const std::size_t              room = liveCells + liveCells / 2 + 8192;
     std::vector<HeapEntry<double>> bySelection;
     std::vector<HeapEntry<float>>  byWorst;
-    for (uint32_t c = 0; c < live; ++c)
+    bySelection.reserve(room);
+    byWorst.reserve(room);
+    for (uint32_t c = 0; c < cellAlive.size(); ++c)
     {
-      if (cellWorstVoxel[c] != NoVoxel)
+      if (cellAlive[c] && cellWorstVoxel[c] != NoVoxel)
       {
         bySelection.push_back(HeapEntry<double>{ selectionError[c], c });
         byWorst.push_back(HeapEntry<float>{ cellWorstError[c], c });
@@ -569,6 +582,20 @@ struct RefinementEngine::Impl
     }
     byCellError = CellHeap<double>(ByKey{ &cellWorstVoxel }, std::move(bySelection));
     byVoxelError = CellHeap<float>(ByKey{ &cellWorstVoxel }, std::move(byWorst));
+  }
+
+  // Frees the cells' state and heaps, which a full rescan (RescanAll) makes anew: the least squares do
+  // not read them, and their peak is where the engine's is.
+  void
+  ReleaseCellState()
+  {
+    byCellError = CellHeap<double>(ByKey{ &cellWorstVoxel });
+    byVoxelError = CellHeap<float>(ByKey{ &cellWorstVoxel });
+    std::vector<double>().swap(cellError);
+    std::vector<double>().swap(cellSelection);
+    std::vector<float>().swap(cellWorstError);
+    std::vector<uint64_t>().swap(cellWorstVoxel);
+    std::vector<char>().swap(cellAlive);
   }
 
   // Positions first to last - 1 of `cells` sorted by each cell's lowest vertex (z, then y, then x): visited
@@ -616,8 +643,19 @@ struct RefinementEngine::Impl
   void
   RescanAll()
   {
-    byCellError = CellHeap<double>(ByKey{ &cellWorstVoxel });
-    byVoxelError = CellHeap<float>(ByKey{ &cellWorstVoxel });
+    // Every live cell is committed again: its state is made anew, sized to the ids.
+    ReleaseCellState();
+    const std::size_t ids = mesh.NumberOfCellIds();
+    auto              fresh = [ids](auto & v) { v.resize(ids); };
+    fresh(cellError);
+    if (selection != image)
+    {
+      fresh(cellSelection);
+    }
+    fresh(cellWorstError);
+    fresh(cellWorstVoxel);
+    fresh(cellAlive);
+    liveCells = 0;
     squaredError = 0.0;
     std::fill(removalCostValid.begin(), removalCostValid.end(), 0);
     const auto            cells = mesh.FiniteCells();
@@ -627,9 +665,10 @@ struct RefinementEngine::Impl
       ParallelFor(order.size(), 64, [&](std::size_t k) { scans[order[k] - first] = Scan(cells[order[k]]); });
       for (std::size_t i = first; i < last; ++i)
       {
-        Commit(cells[i].id, scans[i - first]);
+        Commit(cells[i].id, scans[i - first], false);
       }
     });
+    RebuildHeaps();
   }
 
   // Top live cell of a heap, or NoCell when none is left.
@@ -1044,6 +1083,7 @@ RefinementEngine::OptimizeValues()
   // requantize the values on one mesh, reuse it.
   if (d.solvedMesh != d.meshVersion)
   {
+    d.ReleaseCellState(); // the rescan below makes it again
     auto cells = d.mesh.FiniteCells();
     // Compact indices of the live vertices.
     std::vector<int> index(d.mesh.NumberOfVertexIds(), -1);
