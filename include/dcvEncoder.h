@@ -96,7 +96,7 @@ CheckOptions(const EncoderOptions & options, const EncoderInput & input);
  * search buffers; per point the tetrahedralization, the least squares and the heaps. */
 constexpr double EncodingBytesPerVoxel = 24.0;
 constexpr double EncodingBytesPerVoxelWithResidualLayer = 48.0;
-constexpr double EncodingBytesPerPoint = 7680.0;
+constexpr double EncodingBytesPerPoint = 4096.0;
 
 /** What encoding a grid with these options may need at most (the memory model above). The points: the
  * target NumberOfPoints, or with BitsPerVoxel as many as the budget holds at 8 bits a point; a PSNR
