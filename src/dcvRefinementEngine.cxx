@@ -395,6 +395,14 @@ struct RefinementEngine::Impl
     }
   }
 
+  // Six times a cell's volume: an exact integer, whatever the order of its vertices.
+  uint64_t
+  Volume6(const Tetrahedralization::Cell & c) const
+  {
+    return uint64_t(std::abs(SignedVolume6(
+      { mesh.Point(c.vertices[0]), mesh.Point(c.vertices[1]), mesh.Point(c.vertices[2]), mesh.Point(c.vertices[3]) })));
+  }
+
   // Reads only: cells can be scanned on several threads at once.
   CellScan
   Scan(const Tetrahedralization::Cell & c) const
@@ -480,10 +488,7 @@ struct RefinementEngine::Impl
     uint64_t volume6 = 0;
     for (const auto & c : created)
     {
-      volume6 += uint64_t(std::abs(SignedVolume6({ mesh.Point(c.vertices[0]),
-                                                   mesh.Point(c.vertices[1]),
-                                                   mesh.Point(c.vertices[2]),
-                                                   mesh.Point(c.vertices[3]) })));
+      volume6 += Volume6(c);
     }
     constexpr uint64_t parallelVoxels = 32768; // a few hundred microseconds of scanning
     if (volume6 / 6 >= parallelVoxels && created.size() > 1)
@@ -716,11 +721,7 @@ struct RefinementEngine::Impl
     terms.clear();
     for (const auto & c : incident)
     {
-      // Six times the volume, as Scan() gives it (exact integers: the order of the vertices does not matter).
-      const std::array<GridPoint, 4> p{
-        mesh.Point(c.vertices[0]), mesh.Point(c.vertices[1]), mesh.Point(c.vertices[2]), mesh.Point(c.vertices[3])
-      };
-      terms.emplace_back(cellError[c.id], double(std::abs(SignedVolume6(p))));
+      terms.emplace_back(cellError[c.id], double(Volume6(c))); // as Scan() gives it
     }
     std::sort(terms.begin(), terms.end());
     double error = 0.0, volume = 0.0;
