@@ -88,9 +88,13 @@ public:
   /** Number of cell ids given so far (dead cells included): the size per-id state needs. */
   std::size_t
   NumberOfCellIds() const;
-  /** All finite cells. */
+  /** All finite cells, by id. */
   std::vector<Cell>
   FiniteCells() const;
+  /** The finite cells with ids first to last - 1, by id, into `out` (cleared first): a part of the cells
+   * at a time, where a list of all of them (20 bytes a cell) would set a peak. */
+  void
+  FiniteCells(CellId first, CellId last, std::vector<Cell> & out) const;
 
   /** Position of a vertex. */
   const GridPoint &

@@ -643,6 +643,21 @@ struct RefinementEngine::Impl
     }
   }
 
+  // Calls f(cells) with the live cells of consecutive ranges of ids, by id: all the cells a part at a
+  // time, never a list of all of them (20 bytes a cell).
+  template <typename F>
+  void
+  ForEachIdRange(F && f) const
+  {
+    constexpr std::size_t                 chunk = std::size_t(1) << 18;
+    std::vector<Tetrahedralization::Cell> cells;
+    for (std::size_t first = 0; first < mesh.NumberOfCellIds(); first += chunk)
+    {
+      mesh.FiniteCells(uint32_t(first), uint32_t(std::min(mesh.NumberOfCellIds(), first + chunk)), cells);
+      f(cells);
+    }
+  }
+
   // Recomputes every live cell (after the selection image or the values changed): scanned in
   // parallel, committed in id order, so the sums and heaps do not depend on the threads.
   void
@@ -663,14 +678,14 @@ struct RefinementEngine::Impl
     liveCells = 0;
     squaredError = 0.0;
     std::fill(removalCostValid.begin(), removalCostValid.end(), 0);
-    const auto            cells = mesh.FiniteCells();
     std::vector<CellScan> scans;
-    ForEachChunk(cells, [&](std::size_t first, std::size_t last, const std::vector<uint32_t> & order) {
-      scans.resize(last - first);
-      ParallelFor(order.size(), 64, [&](std::size_t k) { scans[order[k] - first] = Scan(cells[order[k]]); });
-      for (std::size_t i = first; i < last; ++i)
+    ForEachIdRange([&](const std::vector<Tetrahedralization::Cell> & cells) {
+      const auto order = SpatialOrder(cells, 0, cells.size());
+      scans.resize(cells.size());
+      ParallelFor(order.size(), 64, [&](std::size_t k) { scans[order[k]] = Scan(cells[order[k]]); });
+      for (std::size_t i = 0; i < cells.size(); ++i)
       {
-        Commit(cells[i].id, scans[i - first], false);
+        Commit(cells[i].id, scans[i], false);
       }
     });
     RebuildHeaps();
@@ -1292,7 +1307,6 @@ RefinementEngine::GetApproximation() const
   a.scale = d.parameters.scale;
   // Vertex ids have holes once vertices were removed: number the live ones densely.
   std::vector<uint32_t> index(d.mesh.NumberOfVertexIds(), NoCell);
-  const auto            cells = d.mesh.FiniteCells();
   auto                  indexOf = [&](uint32_t v) {
     if (index[v] == NoCell)
     {
@@ -1302,12 +1316,14 @@ RefinementEngine::GetApproximation() const
     }
     return index[v];
   };
-  a.tetrahedra.reserve(cells.size());
-  for (const auto & c : cells)
-  {
-    a.tetrahedra.push_back(
-      { indexOf(c.vertices[0]), indexOf(c.vertices[1]), indexOf(c.vertices[2]), indexOf(c.vertices[3]) });
-  }
+  a.tetrahedra.reserve(d.mesh.NumberOfFiniteCells());
+  d.ForEachIdRange([&](const std::vector<Tetrahedralization::Cell> & cells) {
+    for (const auto & c : cells)
+    {
+      a.tetrahedra.push_back(
+        { indexOf(c.vertices[0]), indexOf(c.vertices[1]), indexOf(c.vertices[2]), indexOf(c.vertices[3]) });
+    }
+  });
   return a;
 }
 

@@ -60,7 +60,7 @@ struct Tetrahedralization::Impl
   GridScale                 scale{ { 1, 1, 1 } };
   std::vector<GridPoint>    points;   // by vertex id
   std::vector<VertexHandle> vertices; // by vertex id (null once removed)
-  std::vector<CellHandle>   cells;    // by cell id (stale once the cell died)
+  std::vector<CellHandle>   cells;    // by cell id (null once the cell died)
   std::vector<CellHandle>   scratch;
 
   // Gives ids to the new finite cells and reports them.
@@ -106,10 +106,21 @@ struct Tetrahedralization::Impl
     }
   }
 
+  // Forgets the handles of dead cells: CGAL recycles them for new cells.
+  void
+  Kill(const std::vector<CellId> & dead)
+  {
+    for (CellId id : dead)
+    {
+      cells[id] = CellHandle();
+    }
+  }
+
   // Re-numbers every finite cell (after operations whose new cells CGAL does not report).
   void
   RegisterAll()
   {
+    std::fill(cells.begin(), cells.end(), CellHandle());
     for (auto c = dt.all_cells_begin(); c != dt.all_cells_end(); ++c)
     {
       Register(c, nullptr);
@@ -213,6 +224,7 @@ Tetrahedralization::Insert(const GridPoint & p, CellId hint, std::vector<CellId>
       killed.push_back(dead->info().id);
     }
   }
+  d.Kill(killed);
   VertexHandle v = d.dt.insert_in_hole(q, d.scratch.begin(), d.scratch.end(), facet.first, facet.second);
   v->info() = id;
   d.points.push_back(p);
@@ -243,6 +255,7 @@ Tetrahedralization::Remove(VertexId id, std::vector<CellId> & killed, std::vecto
       killed.push_back(dead->info().id);
     }
   }
+  d.Kill(killed);
   d.scratch.clear();
   d.dt.remove_and_give_new_cells(v, std::back_inserter(d.scratch));
   d.vertices[id] = VertexHandle();
@@ -269,26 +282,24 @@ Tetrahedralization::IncidentCells(VertexId id, std::vector<Cell> & out) const
 std::vector<Tetrahedralization::CellId>
 Tetrahedralization::CompactCellIds()
 {
-  Impl &                                     d = *m_Impl;
-  std::vector<std::pair<CellId, CellHandle>> live;
-  live.reserve(d.dt.number_of_finite_cells());
-  for (auto c = d.dt.finite_cells_begin(); c != d.dt.finite_cells_end(); ++c)
-  {
-    live.emplace_back(c->info().id, c);
-  }
-  std::sort(live.begin(), live.end(), [](const auto & a, const auto & b) { return a.first < b.first; });
+  Impl &              d = *m_Impl;
   std::vector<CellId> renumbered(d.cells.size(), NoCell);
+  CellId              next = 0;
+  for (CellId old = 0; old < d.cells.size(); ++old)
+  {
+    if (d.cells[old] != CellHandle())
+    {
+      renumbered[old] = next;
+      d.cells[old]->info().id = next;
+      d.cells[next++] = d.cells[old]; // next <= old: nothing unread is overwritten
+    }
+  }
   // Room for the ids to come up to the next compaction (at 1.5 times the live cells, see
   // RefinementEngine), not the doubling of push_back: 8 bytes an id.
-  std::vector<CellHandle>().swap(d.cells);
-  d.cells.reserve(live.size() + live.size() / 2 + 8192);
-  d.cells.resize(live.size());
-  for (std::size_t i = 0; i < live.size(); ++i)
-  {
-    renumbered.at(live[i].first) = CellId(i);
-    live[i].second->info().id = CellId(i);
-    d.cells[i] = live[i].second;
-  }
+  std::vector<CellHandle> kept;
+  kept.reserve(std::size_t(next) + next / 2 + 8192);
+  kept.assign(d.cells.begin(), d.cells.begin() + next);
+  d.cells.swap(kept);
   return renumbered;
 }
 
@@ -303,14 +314,23 @@ Tetrahedralization::FiniteCells() const
 {
   std::vector<Cell> out;
   out.reserve(m_Impl->dt.number_of_finite_cells());
-  for (auto c = m_Impl->dt.finite_cells_begin(); c != m_Impl->dt.finite_cells_end(); ++c)
-  {
-    out.push_back(
-      Cell{ c->info().id, { c->vertex(0)->info(), c->vertex(1)->info(), c->vertex(2)->info(), c->vertex(3)->info() } });
-  }
-  // By id: an order that does not depend on memory addresses (see RegisterInOrder).
-  std::sort(out.begin(), out.end(), [](const Cell & a, const Cell & b) { return a.id < b.id; });
+  FiniteCells(0, CellId(m_Impl->cells.size()), out);
   return out;
+}
+
+void
+Tetrahedralization::FiniteCells(CellId first, CellId last, std::vector<Cell> & out) const
+{
+  // By id: an order that does not depend on memory addresses (see RegisterInOrder).
+  out.clear();
+  const auto & cells = m_Impl->cells;
+  for (CellId id = first; id < std::min<std::size_t>(last, cells.size()); ++id)
+  {
+    if (const CellHandle & c = cells[id]; c != CellHandle())
+    {
+      out.push_back(Cell{ id, { c->vertex(0)->info(), c->vertex(1)->info(), c->vertex(2)->info(), c->vertex(3)->info() } });
+    }
+  }
 }
 
 const GridPoint &

@@ -165,6 +165,23 @@ TEST(Tetrahedralization, CompactedCellIdsAreDenseAndKeepTheirOrder)
   }
   const auto before = mesh.FiniteCells();
   ASSERT_GT(mesh.NumberOfCellIds(), before.size()); // dead ids are kept until compaction
+  // Ranges of ids give the same cells, a part at a time.
+  std::vector<Tetrahedralization::Cell> parts, part;
+  for (uint32_t first = 0; first < mesh.NumberOfCellIds(); first += 37)
+  {
+    mesh.FiniteCells(first, first + 37, part);
+    for (const auto & c : part)
+    {
+      EXPECT_TRUE(c.id >= first && c.id < first + 37);
+    }
+    parts.insert(parts.end(), part.begin(), part.end());
+  }
+  ASSERT_EQ(parts.size(), before.size());
+  for (std::size_t i = 0; i < parts.size(); ++i)
+  {
+    EXPECT_EQ(parts[i].id, before[i].id);
+    EXPECT_EQ(parts[i].vertices, before[i].vertices);
+  }
   const auto renumbered = mesh.CompactCellIds();
   EXPECT_EQ(renumbered.size(), std::size_t(before.back().id) + 1);
   EXPECT_EQ(mesh.NumberOfCellIds(), before.size());
