@@ -115,9 +115,14 @@ ForEachSpanPrefetched(const GridSize & grid, const std::array<GridPoint, 4> & p,
   spans.clear();
   ForEachSpan(grid, p, [&](int32_t y, int32_t z, int32_t x0, int32_t x1) {
     spans.push_back({ y, z, x0, x1 });
-    __builtin_prefetch(image + grid.Offset(x0, y, z));
+    const uint64_t first = grid.Offset(x0, y, z), last = first + uint64_t(x1 - x0);
+    __builtin_prefetch(image + first);
+    __builtin_prefetch(image + last); // the row's second cache line, if it has one
     if (other)
-      __builtin_prefetch(other + grid.Offset(x0, y, z));
+    {
+      __builtin_prefetch(other + first);
+      __builtin_prefetch(other + last);
+    }
   });
   for (const Span & s : spans)
   {
