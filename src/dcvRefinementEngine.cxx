@@ -358,7 +358,7 @@ struct RefinementEngine::Impl
       const LinearFunction L0{ CanonicalTetrahedron(p, without) };
       const LinearFunction W{ CanonicalTetrahedron(p, weight) };
       double               a = 0.0, b = 0.0;
-      ForEachSpan(grid, p, [&](int32_t y, int32_t z, int32_t x0, int32_t x1) {
+      ForEachSpanPrefetched(grid, p, image, nullptr, [&](int32_t y, int32_t z, int32_t x0, int32_t x1) {
         const float * row = image + grid.Offset(0, y, z);
         for (int32_t x = x0; x <= x1; ++x)
         {
