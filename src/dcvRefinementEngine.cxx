@@ -102,7 +102,8 @@ private:
  * `other`, and their words of the bit set `bits`, where not null) asked for from memory at once; then
  * f(y, z, x0, x1) for each row, in ForEachSpan's order. A cell's rows are short (9 voxels on average on
  * norm-256 at 0.03125 bpv) and their starts missed the cache one after the other; asked for together, the
- * misses overlap (ct-avm at 0.0625 bpv: CPU time 0.86, 0.91 with the last voxels, 0.98 with the bits). */
+ * misses overlap (ct-avm at 0.0625 bpv: CPU time 0.86, 0.91 with the last voxels, 0.98 with the bits).
+ * The rows are kept per thread: f must not call it again. */
 template <typename TFunction>
 void
 ForEachSpanPrefetched(const GridSize & grid, const std::array<GridPoint, 4> & p, const float * image,
