@@ -444,7 +444,7 @@ struct RefinementEngine::Impl
     double                     sse = 0.0, sseSelection = 0.0;
     float                      worst = 0.0f;
     uint64_t                   worstVoxel = NoVoxel;
-    ForEachSpanPrefetched(grid, t.p, image, separate ? selection : nullptr, isVertex.data(), [&](int32_t y, int32_t z, int32_t x0, int32_t x1) {
+    auto                       scanRow = [&](int32_t y, int32_t z, int32_t x0, int32_t x1) {
       const double   base = L.RowBase(y, z);
       const uint64_t rowOffset = grid.Offset(0, y, z);
       const float *  row = image + rowOffset;
@@ -469,7 +469,8 @@ struct RefinementEngine::Impl
         }
       }
       s.count += uint64_t(x1 - x0 + 1);
-    });
+    };
+    ForEachSpanPrefetched(grid, t.p, image, separate ? selection : nullptr, isVertex.data(), scanRow);
     s.sse = sse;
     s.sseSelection = separate ? sseSelection : sse;
     s.worst = worst;
@@ -1166,7 +1167,7 @@ RefinementEngine::OptimizeValues()
         // per voxel up to rounding; the files of the dev volumes came out the same.
         ForEachSpanPrefetched(d.grid, p, d.image, nullptr, nullptr, [&](int32_t y, int32_t z, int32_t x0, int32_t x1) {
           const float * row = d.image + d.grid.Offset(0, y, z);
-          double sumI = 0.0, sumUI = 0.0;
+          double        sumI = 0.0, sumUI = 0.0;
           for (int32_t x = x0; x <= x1; ++x)
           {
             const double value = double(row[x]);

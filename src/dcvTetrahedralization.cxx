@@ -328,7 +328,8 @@ Tetrahedralization::FiniteCells(CellId first, CellId last, std::vector<Cell> & o
   {
     if (const CellHandle & c = cells[id]; c != CellHandle())
     {
-      out.push_back(Cell{ id, { c->vertex(0)->info(), c->vertex(1)->info(), c->vertex(2)->info(), c->vertex(3)->info() } });
+      out.push_back(
+        Cell{ id, { c->vertex(0)->info(), c->vertex(1)->info(), c->vertex(2)->info(), c->vertex(3)->info() } });
     }
   }
 }

@@ -164,7 +164,7 @@ TEST(Tetrahedralization, CompactedCellIdsAreDenseAndKeepTheirOrder)
     mesh.Remove(v, killed, created);
   }
   const auto before = mesh.FiniteCells();
-  ASSERT_GT(mesh.NumberOfCellIds(), before.size()); // dead ids are kept until compaction
+  ASSERT_GT(mesh.NumberOfCellIds(), before.size());     // dead ids are kept until compaction
   ASSERT_EQ(before.size(), mesh.NumberOfFiniteCells()); // CGAL's own count: every dead cell was forgotten
   // Ranges of ids give the same cells, a part at a time.
   std::vector<Tetrahedralization::Cell> parts, part;
