@@ -650,6 +650,9 @@ struct RefinementEngine::Impl
     return order;
   }
 
+  // Cells worked a part at a time (ForEachChunk, ForEachIdRange): their results in hand stay a few MB.
+  static constexpr std::size_t chunk = std::size_t(1) << 18;
+
   // Calls f(first, last, order) for consecutive ranges of positions in `cells`, order being the range's
   // positions in SpatialOrder. Callers work a range on the threads, then use its results in position
   // order: the same results as for the whole list at once, without holding a result for every cell
@@ -658,7 +661,6 @@ struct RefinementEngine::Impl
   void
   ForEachChunk(const std::vector<Tetrahedralization::Cell> & cells, F && f) const
   {
-    constexpr std::size_t chunk = std::size_t(1) << 18;
     for (std::size_t first = 0; first < cells.size(); first += chunk)
     {
       const std::size_t last = std::min(cells.size(), first + chunk);
@@ -672,7 +674,6 @@ struct RefinementEngine::Impl
   void
   ForEachIdRange(F && f) const
   {
-    constexpr std::size_t                 chunk = std::size_t(1) << 18;
     std::vector<Tetrahedralization::Cell> cells;
     for (std::size_t first = 0; first < mesh.NumberOfCellIds(); first += chunk)
     {

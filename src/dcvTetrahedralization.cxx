@@ -324,7 +324,8 @@ Tetrahedralization::FiniteCells(CellId first, CellId last, std::vector<Cell> & o
   // By id: an order that does not depend on memory addresses (see RegisterInOrder).
   out.clear();
   const auto & cells = m_Impl->cells;
-  for (CellId id = first; id < std::min<std::size_t>(last, cells.size()); ++id)
+  const CellId end = CellId(std::min<std::size_t>(last, cells.size()));
+  for (CellId id = first; id < end; ++id)
   {
     if (const CellHandle & c = cells[id]; c != CellHandle())
     {
