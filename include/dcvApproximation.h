@@ -24,6 +24,7 @@
 #include <array>
 #include <algorithm>
 #include <atomic>
+#include <cmath>
 #include <cstdint>
 #include <functional>
 #include <limits>
@@ -117,13 +118,69 @@ ForEachSlab(const GridSize & grid, unsigned int threads, F && f)
   });
 }
 
+/** AddResidual for the voxels [first, end). For integers of 16 bits or less and a whole step below 2^20
+ * (integer layers always have one) the sum is a whole number, exact in double, so converting it is
+ * clamping it: the same voxels in a loop the compiler vectorizes. */
+template <typename T>
+void
+AddResidualToVoxels(const Residual & r, T * out, uint64_t first, uint64_t end)
+{
+  if constexpr (std::is_integral<T>::value && sizeof(T) <= 2)
+  {
+    if (r.step == std::floor(r.step) && std::abs(r.step) < double(1 << 20))
+    {
+      const double lowest = double(std::numeric_limits<T>::lowest()), highest = double(std::numeric_limits<T>::max());
+      const double step = r.step;
+      const int32_t * samples = r.samples.data();
+      for (uint64_t i = first; i < end; ++i)
+      {
+        const double v = double(out[i]) + step * double(samples[i]);
+        out[i] = T(int32_t(v < lowest ? lowest : (v > highest ? highest : v)));
+      }
+      return;
+    }
+  }
+  for (uint64_t i = first; i < end; ++i)
+    out[i] = AddResidual(out[i], r, i);
+}
+
 template <typename T>
 void
 AddResidualToSlices(const Approximation & a, T * out, int32_t z0, int32_t z1)
 {
   const uint64_t plane = uint64_t(a.grid.x) * uint64_t(a.grid.y);
-  for (uint64_t i = uint64_t(z0) * plane, end = (uint64_t(z1) + 1) * plane; i < end; ++i)
-    out[i] = AddResidual(out[i], a.residual, i);
+  AddResidualToVoxels(a.residual, out, uint64_t(z0) * plane, (uint64_t(z1) + 1) * plane);
+}
+
+/** Whether the spline is one value over the whole grid (the corners under a residual layer that took the
+ * whole budget), and which: every value equal, and the cells filling the box (their vertices in it and
+ * their volumes adding up to its volume: cells never overlap). Every voxel is then that value converted,
+ * as the cells give it (their gradients are 0); but a zero of a real type would take its sign from the
+ * cell's arithmetic, so it is left to the cells. */
+template <typename T>
+bool
+IsOneValue(const Approximation & a, double & value)
+{
+  if (a.values.empty() || a.tetrahedra.empty() || a.grid.x < 2 || a.grid.y < 2 || a.grid.z < 2)
+    return false;
+  value = a.values.front();
+  if (!std::is_integral<T>::value && value == 0.0)
+    return false;
+  for (const double v : a.values)
+    if (!(v == value))
+      return false;
+  for (const GridPoint & p : a.points)
+    if (p[0] < 0 || p[1] < 0 || p[2] < 0 || p[0] >= a.grid.x || p[1] >= a.grid.y || p[2] >= a.grid.z)
+      return false;
+  uint64_t volume6 = 0;
+  for (const Tetrahedron & t : a.tetrahedra)
+  {
+    if (t[0] >= a.points.size() || t[1] >= a.points.size() || t[2] >= a.points.size() || t[3] >= a.points.size())
+      return false;
+    const int64_t v = SignedVolume6({ a.points[t[0]], a.points[t[1]], a.points[t[2]], a.points[t[3]] });
+    volume6 += uint64_t(v < 0 ? -v : v);
+  }
+  return volume6 == 6 * uint64_t(a.grid.x - 1) * uint64_t(a.grid.y - 1) * uint64_t(a.grid.z - 1);
 }
 } // namespace detail
 
@@ -145,7 +202,21 @@ Rasterize(const Approximation & a, T * out, unsigned int threads = 0)
     threads = 1; // a small volume of few cells: not worth a thread
   }
   const bool residual = !a.residual.samples.empty();
-  auto       cell = [&a, out](std::size_t c, int32_t z0, int32_t z1) {
+  double     one = 0.0;
+  if (detail::IsOneValue<T>(a, one))
+  {
+    // One pass over the voxels instead of two (the cells, then the layer).
+    const T        value = ConvertValue<T>(one);
+    const uint64_t plane = uint64_t(a.grid.x) * uint64_t(a.grid.y);
+    detail::ForEachSlab(a.grid, threads, [&](int32_t z0, int32_t z1) {
+      const uint64_t first = uint64_t(z0) * plane, end = (uint64_t(z1) + 1) * plane;
+      std::fill(out + first, out + end, value);
+      if (residual)
+        detail::AddResidualToVoxels(a.residual, out, first, end);
+    });
+    return;
+  }
+  auto cell = [&a, out](std::size_t c, int32_t z0, int32_t z1) {
     const Tetrahedron & t = a.tetrahedra[c];
     RasterizeTetrahedron(a.grid,
                          { a.points[t[0]], a.points[t[1]], a.points[t[2]], a.points[t[3]] },

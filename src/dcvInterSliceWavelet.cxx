@@ -19,6 +19,7 @@
 #include "dcvParallel.h"
 
 #include <algorithm>
+#include <functional>
 #include <limits>
 #include <stdexcept>
 #include <string>
@@ -42,16 +43,25 @@ Weigh(int64_t c, int64_t w)
   return FloorShift(2 * c * w + 4096, 13);
 }
 
-/** round(c 4096 / w), halves up: the inverse of Weigh for w >= 4096. Exact: the quotient is taken in
- * double and truncated (numerator and denominator are below 2^53, so that is at most one from the
- * floor), then corrected with integers: several times faster than a 64-bit division per sample. */
+/** round(c 4096 / w), halves up: the inverse of Weigh for w >= 4096, with `inverse` = 1 / (2 w). Exact:
+ * the quotient is estimated in double (a product: a 64-bit division per sample would cost more than the
+ * rest of the synthesis) and corrected with integers to the floor. */
 int64_t
-Unweigh(int64_t c, int64_t w)
+Unweigh(int64_t c, int64_t w, double inverse)
 {
   const int64_t num = c * 8192 + w, den = 2 * w;
-  int64_t       q = int64_t(double(num) / double(den));
-  const int64_t r = num - q * den;
-  q += int64_t(r >= den) - int64_t(r < 0);
+  int64_t       q = int64_t(double(num) * inverse);
+  int64_t       r = num - q * den;
+  while (r < 0)
+  {
+    --q;
+    r += den;
+  }
+  while (r >= den)
+  {
+    ++q;
+    r -= den;
+  }
   return q;
 }
 
@@ -106,31 +116,33 @@ Analyze(int64_t * rows, int64_t * scratch, int32_t m, int64_t width)
   std::copy_n(scratch, int64_t(m) * width, rows);
 }
 
-/** The inverse of Analyze. */
+/** The inverse of Analyze, in S = int64_t for any samples, or in int32_t where they are small enough
+ * (InverseRows): the same integers, and the loops vectorize. Shifts are floor divisions, as in FloorShift. */
+template <typename S>
 void
-Synthesize(int64_t * rows, int64_t * scratch, int32_t m, int64_t width)
+Synthesize(S * rows, S * scratch, int32_t m, int64_t width)
 {
-  const int32_t   lows = (m + 1) / 2, highs = m / 2;
-  const int64_t * low = rows;
-  const int64_t * high = rows + int64_t(lows) * width;
-  auto            x = [&](int32_t i) { return scratch + int64_t(i) * width; };
+  const int32_t lows = (m + 1) / 2, highs = m / 2;
+  const S *     low = rows;
+  const S *     high = rows + int64_t(lows) * width;
+  auto          x = [&](int32_t i) { return scratch + int64_t(i) * width; };
   for (int32_t i = 0; i < lows; ++i)
   {
-    const int64_t * before = high + int64_t(std::clamp(i - 1, 0, highs - 1)) * width;
-    const int64_t * after = high + int64_t(std::min(i, highs - 1)) * width;
-    const int64_t * s = low + int64_t(i) * width;
-    int64_t *       even = x(2 * i);
+    const S * before = high + int64_t(std::clamp(i - 1, 0, highs - 1)) * width;
+    const S * after = high + int64_t(std::min(i, highs - 1)) * width;
+    const S * s = low + int64_t(i) * width;
+    S *       even = x(2 * i);
     for (int64_t c = 0; c < width; ++c)
-      even[c] = s[c] - FloorShift(before[c] + after[c] + 2, 2);
+      even[c] = s[c] - S((before[c] + after[c] + 2) >> 2);
   }
   for (int32_t i = 0; i < highs; ++i)
   {
-    const int64_t * left = x(2 * i);
-    const int64_t * right = x(2 * i + 2 < m ? 2 * i + 2 : 2 * i);
-    const int64_t * d = high + int64_t(i) * width;
-    int64_t *       odd = x(2 * i + 1);
+    const S * left = x(2 * i);
+    const S * right = x(2 * i + 2 < m ? 2 * i + 2 : 2 * i);
+    const S * d = high + int64_t(i) * width;
+    S *       odd = x(2 * i + 1);
     for (int64_t c = 0; c < width; ++c)
-      odd[c] = d[c] + FloorShift(left[c] + right[c], 1);
+      odd[c] = d[c] + S((left[c] + right[c]) >> 1);
   }
   std::copy_n(scratch, int64_t(m) * width, rows);
 }
@@ -148,7 +160,8 @@ CheckLevels(const std::vector<int32_t> & samples, const GridSize & grid, int32_t
 }
 
 /** Runs `f(rows, scratch)` on each image row y of the volume gathered as z rows of x samples (int64, so
- * that no level overflows), then scatters the rows back, clamped to int32. Rows are independent. */
+ * that no level overflows), then scatters the rows back, clamped to int32. Rows are independent. For the
+ * forward transform (the inverse has its own, InverseInterSlice). */
 template <typename F>
 void
 ForEachRow(std::vector<int32_t> & samples, const GridSize & grid, F && f)
@@ -172,6 +185,31 @@ ForEachRow(std::vector<int32_t> & samples, const GridSize & grid, F && f)
         out[c] = int32_t(std::clamp(row[c], lowest, highest));
     }
   });
+}
+
+/** Decoded samples at most this large in magnitude take the synthesis in int32: each level at most
+ * multiplies the magnitudes by 2.5 (plus 3), so after MaximumInterSliceLevels they and the sums of two of
+ * them stay below 2^30. */
+constexpr int32_t SmallSample = int32_t(1) << 20;
+
+/** Divides each slice's samples by its band weight (the finest high band's is 1: left as they are), then
+ * synthesizes `levels` levels. */
+template <typename S>
+void
+InverseRows(S * rows, S * scratch, const GridSize & grid, int32_t levels, const std::vector<int64_t> & weight,
+            const std::vector<double> & inverse)
+{
+  for (int32_t z = 0; z < grid.z; ++z)
+  {
+    const int64_t w = weight[std::size_t(z)];
+    if (w == HighBandWeight[0])
+      continue;
+    S * row = rows + int64_t(z) * grid.x;
+    for (int64_t c = 0; c < grid.x; ++c)
+      row[c] = S(Unweigh(row[c], w, inverse[std::size_t(z)]));
+  }
+  for (int32_t l = levels - 1; l >= 0; --l)
+    Synthesize(rows, scratch, LowLength(grid.z, l), grid.x);
 }
 } // namespace
 
@@ -205,18 +243,59 @@ ForwardInterSlice(std::vector<int32_t> & samples, const GridSize & grid, int32_t
 void
 InverseInterSlice(std::vector<int32_t> & samples, const GridSize & grid, int32_t levels)
 {
+  InverseInterSlice([&](int32_t y, int32_t z) { return samples.data() + grid.Offset(0, y, z); }, samples, grid, levels);
+}
+
+void
+InverseInterSlice(const std::function<const int32_t *(int32_t y, int32_t z)> & source, std::vector<int32_t> & samples,
+                  const GridSize & grid, int32_t levels)
+{
   CheckLevels(samples, grid, levels);
-  if (levels == 0)
-    return;
-  ForEachRow(samples, grid, [&](int64_t * rows, int64_t * scratch) {
+  std::vector<int64_t> weight(std::size_t(grid.z), HighBandWeight[0]);
+  std::vector<double>  inverse(weight.size(), 0.0);
+  for (int32_t z = 0; levels > 0 && z < grid.z; ++z)
+  {
+    weight[std::size_t(z)] = SliceWeight(grid.z, levels, z);
+    inverse[std::size_t(z)] = 1.0 / double(2 * weight[std::size_t(z)]);
+  }
+  const int64_t     width = grid.x;
+  const std::size_t n = std::size_t(width * grid.z);
+  ParallelFor(std::size_t(grid.y), 1, [&](std::size_t row) {
+    const int32_t y = int32_t(row);
+    // Buffers a thread, kept between rows: allocating them per row costs more in page faults than the
+    // lifting itself.
+    thread_local std::vector<int32_t> narrow, narrowScratch;
+    thread_local std::vector<int64_t> wide, wideScratch;
+    narrow.resize(n);
+    int32_t lowest = 0, highest = 0;
     for (int32_t z = 0; z < grid.z; ++z)
     {
-      const int64_t w = SliceWeight(grid.z, levels, z);
-      for (int64_t c = 0; c < grid.x; ++c)
-        rows[z * int64_t(grid.x) + c] = Unweigh(rows[z * int64_t(grid.x) + c], w);
+      const int32_t * in = source(y, z);
+      int32_t *       out = narrow.data() + int64_t(z) * width;
+      for (int64_t c = 0; c < width; ++c)
+      {
+        out[c] = in[c];
+        lowest = std::min(lowest, in[c]);
+        highest = std::max(highest, in[c]);
+      }
     }
-    for (int32_t l = levels - 1; l >= 0; --l)
-      Synthesize(rows, scratch, LowLength(grid.z, l), grid.x);
+    if (levels > 0 && lowest >= -SmallSample && highest <= SmallSample)
+    {
+      narrowScratch.resize(n);
+      InverseRows(narrow.data(), narrowScratch.data(), grid, levels, weight, inverse);
+    }
+    else if (levels > 0)
+    {
+      // Any samples (a damaged layer): in int64, clamped back to int32.
+      wide.assign(narrow.begin(), narrow.end());
+      wideScratch.resize(n);
+      InverseRows(wide.data(), wideScratch.data(), grid, levels, weight, inverse);
+      constexpr int64_t least = std::numeric_limits<int32_t>::min() + 1, most = std::numeric_limits<int32_t>::max();
+      for (std::size_t i = 0; i < n; ++i)
+        narrow[i] = int32_t(std::clamp(wide[i], least, most));
+    }
+    for (int32_t z = 0; z < grid.z; ++z)
+      std::copy_n(narrow.data() + int64_t(z) * width, width, samples.data() + grid.Offset(0, y, z));
   });
 }
 

@@ -492,18 +492,17 @@ DecodeResidualLayer(const std::vector<uint8_t> & codestream, const GridSize & gr
     if (p.data == nullptr || int64_t(p.w) != width || int64_t(p.h) != height)
       throw fail("JPEG 2000 decoding gave no samples");
   }
+  // The inverse wavelet reads each slice's rows where OpenJPEG put them (in the mosaic, or the slice's
+  // component): no copy of the volume laid out as the grid in between.
   std::vector<int32_t> samples(grid.NumberOfVoxels());
-  ParallelFor(std::size_t(grid.z), 1, [&](std::size_t slice) {
-    const int32_t     z = int32_t(slice);
-    const OPJ_INT32 * data = image->comps[planes ? z : 0].data;
-    const int64_t     x0 = planes ? 0 : int64_t(z % cols) * grid.x, y0 = planes ? 0 : int64_t(z / cols) * grid.y;
-    for (int32_t y = 0; y < grid.y; ++y)
-    {
-      std::copy_n(data + (y0 + y) * width + x0, grid.x, samples.data() + grid.Offset(0, y, z));
-    }
-  });
-  image.reset(); // its samples are copied: free them before the inverse wavelet's buffers
-  InverseInterSlice(samples, grid, levels);
+  InverseInterSlice(
+    [&](int32_t y, int32_t z) -> const int32_t * {
+      const int64_t x0 = planes ? 0 : int64_t(z % cols) * grid.x, y0 = planes ? 0 : int64_t(z / cols) * grid.y;
+      return image->comps[planes ? z : 0].data + (y0 + y) * width + x0;
+    },
+    samples,
+    grid,
+    levels);
   return samples;
 }
 

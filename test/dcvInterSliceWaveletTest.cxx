@@ -240,29 +240,54 @@ PlainInverse(std::vector<int64_t> c, int32_t levels)
 
 TEST(InterSliceWavelet, InverseEqualsThePlainArithmeticOfTheFormat)
 {
-  // The inverse divides by shifts and by a corrected floating-point quotient: it must give what true
-  // floor divisions give, for any samples, extremes and negative values included.
-  for (const int32_t slices : { 2, 5, 16, 37 })
-  {
-    const GridSize       g{ 7, 3, slices };
-    std::vector<int32_t> samples = Random(g, 70000, unsigned(slices));
-    for (std::size_t i = 0; i < samples.size(); i += 11)
-      samples[i] = (i % 2) ? std::numeric_limits<int32_t>::max() : std::numeric_limits<int32_t>::min();
-    for (int32_t levels = 1; levels <= dcv::InterSliceLevels(slices); ++levels)
-    {
-      SCOPED_TRACE("slices " + std::to_string(slices) + ", levels " + std::to_string(levels));
-      std::vector<int32_t> fast = samples;
-      dcv::InverseInterSlice(fast, g, levels);
-      for (int32_t y = 0; y < g.y; ++y)
-        for (int32_t x = 0; x < g.x; ++x)
+  // The inverse divides by shifts and by a corrected floating-point quotient, in int32 where the samples
+  // are small (up to 2^20) and in int64 otherwise: it must give what true floor divisions give, for any
+  // samples, extremes and negative values included.
+  for (const int32_t slices : { 2, 5, 16, 37, 64 })
+    for (const int32_t amplitude : { 70000, 1 << 20, (1 << 20) + 1 })
+      for (const bool extremes : { false, true })
+      {
+        const GridSize       g{ 7, 3, slices };
+        std::vector<int32_t> samples = Random(g, amplitude, unsigned(slices));
+        if (!extremes)
+          samples[5] = amplitude; // the largest an int32 synthesis takes, or one past it
+        for (std::size_t i = 0; extremes && i < samples.size(); i += 11)
+          samples[i] = (i % 2) ? std::numeric_limits<int32_t>::max() : std::numeric_limits<int32_t>::min();
+        for (int32_t levels = 1; levels <= dcv::InterSliceLevels(slices); ++levels)
         {
-          std::vector<int64_t> column;
-          for (int32_t z = 0; z < g.z; ++z)
-            column.push_back(samples[g.Offset(x, y, z)]);
-          const std::vector<int64_t> plain = PlainInverse(column, levels);
-          for (int32_t z = 0; z < g.z; ++z)
-            ASSERT_EQ(fast[g.Offset(x, y, z)], plain[std::size_t(z)]) << "x " << x << " y " << y << " z " << z;
+          SCOPED_TRACE("slices " + std::to_string(slices) + ", amplitude " + std::to_string(amplitude) +
+                       (extremes ? ", extremes" : "") + ", levels " + std::to_string(levels));
+          std::vector<int32_t> fast = samples;
+          dcv::InverseInterSlice(fast, g, levels);
+          for (int32_t y = 0; y < g.y; ++y)
+            for (int32_t x = 0; x < g.x; ++x)
+            {
+              std::vector<int64_t> column;
+              for (int32_t z = 0; z < g.z; ++z)
+                column.push_back(samples[g.Offset(x, y, z)]);
+              const std::vector<int64_t> plain = PlainInverse(column, levels);
+              for (int32_t z = 0; z < g.z; ++z)
+                ASSERT_EQ(fast[g.Offset(x, y, z)], plain[std::size_t(z)]) << "x " << x << " y " << y << " z " << z;
+            }
         }
-    }
+      }
+}
+
+TEST(InterSliceWavelet, InverseFromElsewhereEqualsInPlace)
+{
+  // A decoder's inverse reads each row where it was decoded (a mosaic): the same samples as in place.
+  const GridSize       g{ 9, 4, 21 };
+  std::vector<int32_t> samples = Random(g, 3000, 5);
+  std::vector<int32_t> shuffled(samples.size()); // the rows stored by (z, y) reversed
+  auto at = [&](int32_t y, int32_t z) { return int64_t(g.z - 1 - z) * g.y * g.x + int64_t(g.y - 1 - y) * g.x; };
+  for (int32_t z = 0; z < g.z; ++z)
+    for (int32_t y = 0; y < g.y; ++y)
+      std::copy_n(samples.data() + g.Offset(0, y, z), g.x, shuffled.data() + at(y, z));
+  for (int32_t levels = 0; levels <= dcv::InterSliceLevels(g.z); ++levels)
+  {
+    std::vector<int32_t> inPlace = samples, fromElsewhere(samples.size(), -1);
+    dcv::InverseInterSlice(inPlace, g, levels);
+    dcv::InverseInterSlice([&](int32_t y, int32_t z) { return shuffled.data() + at(y, z); }, fromElsewhere, g, levels);
+    EXPECT_EQ(fromElsewhere, inPlace) << levels << " levels";
   }
 }

@@ -18,6 +18,8 @@
 // Exact rasterization: every voxel of the box has exactly one owner, whatever the tetrahedralization.
 #include "dcvTestUtilities.h"
 
+#include <cstring>
+
 namespace
 {
 using namespace dcv;
@@ -191,6 +193,79 @@ TEST(Rasterizer, ThreadsAndSlabsGiveTheSameVoxels)
       std::vector<int16_t> many(grid.NumberOfVoxels(), 0);
       Rasterize(a, many.data(), threads);
       ASSERT_EQ(many, one) << threads << " threads";
+    }
+  }
+}
+
+namespace
+{
+/** The voxels as the rule gives them: each cell on its own, then the residual layer voxel by voxel. */
+template <typename T>
+std::vector<T>
+CellByCell(const Approximation & a)
+{
+  std::vector<T> out(a.grid.NumberOfVoxels(), T(0));
+  for (const Tetrahedron & t : a.tetrahedra)
+    RasterizeTetrahedron(a.grid,
+                         { a.points[t[0]], a.points[t[1]], a.points[t[2]], a.points[t[3]] },
+                         { a.values[t[0]], a.values[t[1]], a.values[t[2]], a.values[t[3]] },
+                         out.data());
+  if (!a.residual.samples.empty())
+    for (std::size_t i = 0; i < out.size(); ++i)
+      out[i] = AddResidual(out[i], a.residual, i);
+  return out;
+}
+
+template <typename T>
+void
+ExpectTheVoxelsOfTheCells(const Approximation & a)
+{
+  const std::vector<T> expected = CellByCell<T>(a);
+  for (const unsigned int threads : { 1u, 2u })
+  {
+    std::vector<T> got(expected.size(), T(7));
+    Rasterize(a, got.data(), threads);
+    // Bytes, not values: a zero's sign counts for real types.
+    ASSERT_EQ(std::memcmp(got.data(), expected.data(), got.size() * sizeof(T)), 0) << threads << " threads";
+  }
+}
+} // namespace
+
+TEST(Rasterizer, OneValueAndWholeStepsGiveWhatTheCellsGive)
+{
+  // The spline of one value (the corners under a residual layer) is filled without its cells, and a whole
+  // step adds the layer in double without rounding: both must give the voxels of the plain rule, clamping
+  // and zeros' signs included.
+  const GridSize grid{ 67, 33, 40 };
+  Approximation  a;
+  a.grid = grid;
+  a.points = test::RandomPoints(grid, 0, 1); // the 8 corners
+  a.tetrahedra = Tetrahedralize(a.points);
+  for (const double value : { 100.0, -0.0, 0.0, 3.5, -70000.25 })
+  {
+    for (const bool varied : { false, true })
+    {
+      a.values.assign(a.points.size(), value);
+      if (varied)
+        a.values.back() = value + 2.0; // not one value: the cells' path
+      for (const double step : { 0.0, 1.0, 3.0, 2.5, double(1 << 20) })
+      {
+        SCOPED_TRACE("value " + std::to_string(value) + (varied ? " varied" : "") + ", step " + std::to_string(step));
+        a.residual = {};
+        if (step > 0.0)
+        {
+          a.residual.step = step;
+          a.residual.samples.resize(grid.NumberOfVoxels());
+          for (std::size_t i = 0; i < a.residual.samples.size(); ++i)
+            a.residual.samples[i] = (i % 97 == 0) ? ((i % 2) ? 1 << 30 : -(1 << 30)) : int32_t(i % 61) * 401 - 12000;
+        }
+        ExpectTheVoxelsOfTheCells<uint8_t>(a);
+        ExpectTheVoxelsOfTheCells<int16_t>(a);
+        ExpectTheVoxelsOfTheCells<uint16_t>(a);
+        ExpectTheVoxelsOfTheCells<int32_t>(a);
+        ExpectTheVoxelsOfTheCells<float>(a);
+        ExpectTheVoxelsOfTheCells<double>(a);
+      }
     }
   }
 }

@@ -388,10 +388,10 @@ PendingOutput::~PendingOutput()
   }
 }
 
-void
-PendingOutput::Commit()
+std::vector<fs::path>
+PendingOutput::Files() const
 {
-  std::vector<fs::path> files; // what to move, the header last
+  std::vector<fs::path> files; // the header last
   if (m_Directory.empty())
   {
     files.emplace_back(m_Path);
@@ -407,7 +407,28 @@ PendingOutput::Commit()
     std::sort(files.begin(), files.end());
     files.emplace_back(m_Path);
   }
-  std::error_code error;
+  return files;
+}
+
+void
+PendingOutput::StartFlush() const
+{
+  for (const auto & file : Files())
+  {
+    const int fd = ::open(file.c_str(), O_RDONLY);
+    if (fd >= 0)
+    {
+      ::sync_file_range(fd, 0, 0, SYNC_FILE_RANGE_WRITE); // a request only: Commit() still waits for it
+      ::close(fd);
+    }
+  }
+}
+
+void
+PendingOutput::Commit()
+{
+  const std::vector<fs::path> files = Files(); // what to move, the header last
+  std::error_code             error;
   if (!fs::is_regular_file(m_Path, error))
   {
     throw Failure("cannot write " + Quoted(m_Output) + ": the writer made no file");

@@ -196,6 +196,11 @@ public:
   void
   Commit();
 
+  /** Asks the disk to start writing what was written, without waiting: work done before Commit() then
+   * overlaps the writing, and Commit() waits less. */
+  void
+  StartFlush() const;
+
   /** After a failed write, the cause when the disk or a limit tells it ("the disk is full ...", a
    * `ulimit -f` size reached), else empty. */
   std::string
@@ -208,6 +213,10 @@ private:
   bool                             m_Force;
   bool                             m_Committed{ false };
   std::unique_ptr<RemovedOnSignal> m_Registration;
+
+  /** The files written, the header last. */
+  std::vector<std::filesystem::path>
+  Files() const;
 };
 
 /** Writes bytes (a .dcv file) to `output` through a PendingOutput: a failure (a full disk, a missing
@@ -236,6 +245,7 @@ WriteVolume(const TImage * image, const std::string & output, bool force, bool c
     const std::string limit = pending.LimitReached();
     throw Failure("cannot write " + Quoted(output) + ": " + (limit.empty() ? e.GetDescription() : limit));
   }
+  pending.StartFlush(); // the disk writes while the file is read back
   // ITK's MetaImage, NIfTI and Analyze writers report a failed write (a full disk) on stderr only, and
   // their readers take the short file without an error: what was written is read back and compared.
   bool same = false;
