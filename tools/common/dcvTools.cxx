@@ -25,6 +25,7 @@
 #include <csignal>
 #include <cstdio>
 #include <cstring>
+#include <fstream>
 #include <iterator>
 #include <memory>
 #include <mutex>
@@ -494,6 +495,27 @@ PendingOutput::LimitReached() const
     }
   }
   return {};
+}
+
+bool
+FileEndsWith(const std::string & path, const void * bytes, std::size_t n)
+{
+  std::ifstream file(path, std::ios::binary | std::ios::ate);
+  if (!file)
+    return false;
+  const std::streamoff size = file.tellg();
+  if (size < std::streamoff(n) || !file.seekg(size - std::streamoff(n)))
+    return false;
+  std::vector<char> block(std::size_t(1) << 20);
+  for (std::size_t done = 0; done < n;)
+  {
+    const std::size_t part = std::min(block.size(), n - done);
+    if (!file.read(block.data(), std::streamsize(part)) ||
+        std::memcmp(block.data(), static_cast<const char *>(bytes) + done, part) != 0)
+      return false;
+    done += part;
+  }
+  return true;
 }
 
 void

@@ -224,6 +224,10 @@ private:
 void
 WriteOutputBytes(const std::string & output, const std::vector<uint8_t> & bytes, bool force);
 
+/** Whether the file `path` ends with the `n` bytes at `bytes` (read a block at a time). */
+bool
+FileEndsWith(const std::string & path, const void * bytes, std::size_t n);
+
 /** Writes an image (gzip compressed where the format allows, unless `compression` is false) through a
  * PendingOutput, so that a failure never leaves a partial or empty file under the output's name; `force`:
  * an existing file may be replaced. */
@@ -248,17 +252,23 @@ WriteVolume(const TImage * image, const std::string & output, bool force, bool c
   pending.StartFlush(); // the disk writes while the file is read back
   // ITK's MetaImage, NIfTI and Analyze writers report a failed write (a full disk) on stderr only, and
   // their readers take the short file without an error: what was written is read back and compared.
-  bool same = false;
+  // Uncompressed, a file of one piece ends with the voxels as they are in memory (NRRD, MetaImage): then
+  // comparing its end is enough, without a reader and a second volume; otherwise ITK reads it back.
+  const auto n = image->GetBufferedRegion().GetNumberOfPixels();
+  bool       same =
+    !compression && FileEndsWith(pending.Path(), image->GetBufferPointer(), n * sizeof(typename TImage::PixelType));
   try
   {
-    auto reader = itk::ImageFileReader<TImage>::New();
-    reader->SetFileName(pending.Path());
-    reader->Update();
-    const TImage * back = reader->GetOutput();
-    const auto     n = image->GetBufferedRegion().GetNumberOfPixels();
-    same =
-      back->GetBufferedRegion().GetSize() == image->GetBufferedRegion().GetSize() &&
-      std::memcmp(back->GetBufferPointer(), image->GetBufferPointer(), n * sizeof(typename TImage::PixelType)) == 0;
+    if (!same)
+    {
+      auto reader = itk::ImageFileReader<TImage>::New();
+      reader->SetFileName(pending.Path());
+      reader->Update();
+      const TImage * back = reader->GetOutput();
+      same =
+        back->GetBufferedRegion().GetSize() == image->GetBufferedRegion().GetSize() &&
+        std::memcmp(back->GetBufferPointer(), image->GetBufferPointer(), n * sizeof(typename TImage::PixelType)) == 0;
+    }
   }
   catch (const itk::ExceptionObject &)
   {}
