@@ -66,11 +66,11 @@ DelaunayCompression_EXPORT void
 InverseInterSlice(std::vector<int32_t> & samples, const GridSize & grid, int32_t levels);
 
 /** The same, reading the transformed samples of slice z's row y (x of them) from `source(y, z)` and
- * writing the result to `samples` (one per voxel): a decoder takes them straight from where they were
- * decoded (a mosaic), without a copy laid out as the grid first. `source` is called from several
- * threads, each row once, and may point into `samples` itself. */
+ * writing the result to `out` (one per voxel, laid out as the grid): a decoder takes them straight from
+ * where they were decoded (a mosaic), without a copy laid out as the grid first. `source` is called from
+ * several threads, each row once, and may point into `out` itself. */
 DelaunayCompression_EXPORT void
-InverseInterSlice(const std::function<const int32_t *(int32_t y, int32_t z)> & source, std::vector<int32_t> & samples,
+InverseInterSlice(const std::function<const int32_t *(int32_t y, int32_t z)> & source, int32_t * out,
                   const GridSize & grid, int32_t levels);
 
 } // namespace dcv

@@ -71,7 +71,7 @@ EncodeResidualLayer(const std::vector<int32_t> & samples, const GridSize & grid,
 /** Decodes a residual layer's codestream to samples laid out as the grid, undoing `levels` levels of
  * the inter-slice wavelet. Throws FormatError starting with `name` when the codestream is damaged or
  * does not hold a mosaic of the grid's slices. */
-DelaunayCompression_EXPORT std::vector<int32_t>
+DelaunayCompression_EXPORT ResidualSamples
 DecodeResidualLayer(const std::vector<uint8_t> & codestream, const GridSize & grid, const std::string & name,
                     int32_t levels = 0);
 
@@ -113,7 +113,7 @@ struct ResidualChoice
   double               step{ 0.0 };
   int32_t              levels{ 0 }; // of the inter-slice wavelet
   std::vector<uint8_t> codestream;  // empty: none fits
-  std::vector<int32_t> samples;     // as the decoder gets them
+  ResidualSamples      samples;     // as the decoder gets them
   double               squaredError{ 0.0 };
 };
 

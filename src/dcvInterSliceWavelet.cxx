@@ -148,15 +148,21 @@ Synthesize(S * rows, S * scratch, int32_t m, int64_t width)
 }
 
 void
-CheckLevels(const std::vector<int32_t> & samples, const GridSize & grid, int32_t levels)
+CheckLevels(const GridSize & grid, int32_t levels)
 {
-  if (samples.size() != grid.NumberOfVoxels())
-    throw std::invalid_argument("inter-slice wavelet: one sample per voxel");
   if (levels < 0 || levels > InterSliceLevels(grid.z))
   {
     throw std::invalid_argument("inter-slice wavelet: " + std::to_string(grid.z) + " slices take at most " +
                                 std::to_string(InterSliceLevels(grid.z)) + " levels, not " + std::to_string(levels));
   }
+}
+
+void
+CheckLevels(const std::vector<int32_t> & samples, const GridSize & grid, int32_t levels)
+{
+  if (samples.size() != grid.NumberOfVoxels())
+    throw std::invalid_argument("inter-slice wavelet: one sample per voxel");
+  CheckLevels(grid, levels);
 }
 
 /** Runs `f(rows, scratch)` on each image row y of the volume gathered as z rows of x samples (int64, so
@@ -243,14 +249,16 @@ ForwardInterSlice(std::vector<int32_t> & samples, const GridSize & grid, int32_t
 void
 InverseInterSlice(std::vector<int32_t> & samples, const GridSize & grid, int32_t levels)
 {
-  InverseInterSlice([&](int32_t y, int32_t z) { return samples.data() + grid.Offset(0, y, z); }, samples, grid, levels);
+  CheckLevels(samples, grid, levels);
+  InverseInterSlice(
+    [&](int32_t y, int32_t z) { return samples.data() + grid.Offset(0, y, z); }, samples.data(), grid, levels);
 }
 
 void
-InverseInterSlice(const std::function<const int32_t *(int32_t y, int32_t z)> & source, std::vector<int32_t> & samples,
+InverseInterSlice(const std::function<const int32_t *(int32_t y, int32_t z)> & source, int32_t * out,
                   const GridSize & grid, int32_t levels)
 {
-  CheckLevels(samples, grid, levels);
+  CheckLevels(grid, levels);
   std::vector<int64_t> weight(std::size_t(grid.z), HighBandWeight[0]);
   std::vector<double>  inverse(weight.size(), 0.0);
   for (int32_t z = 0; levels > 0 && z < grid.z; ++z)
@@ -295,7 +303,7 @@ InverseInterSlice(const std::function<const int32_t *(int32_t y, int32_t z)> & s
         narrow[i] = int32_t(std::clamp(wide[i], least, most));
     }
     for (int32_t z = 0; z < grid.z; ++z)
-      std::copy_n(narrow.data() + int64_t(z) * width, width, samples.data() + grid.Offset(0, y, z));
+      std::copy_n(narrow.data() + int64_t(z) * width, width, out + grid.Offset(0, y, z));
   });
 }
 

@@ -442,7 +442,7 @@ EncodeResidualLayer(const std::vector<int32_t> & input, const GridSize & grid, s
   return EncodeWithin(image, maximumBytes, wavelet, target);
 }
 
-std::vector<int32_t>
+ResidualSamples
 DecodeResidualLayer(const std::vector<uint8_t> & codestream, const GridSize & grid, const std::string & name,
                     int32_t levels)
 {
@@ -494,13 +494,13 @@ DecodeResidualLayer(const std::vector<uint8_t> & codestream, const GridSize & gr
   }
   // The inverse wavelet reads each slice's rows where OpenJPEG put them (in the mosaic, or the slice's
   // component): no copy of the volume laid out as the grid in between.
-  std::vector<int32_t> samples(grid.NumberOfVoxels());
+  ResidualSamples samples(grid.NumberOfVoxels()); // each written once below
   InverseInterSlice(
     [&](int32_t y, int32_t z) -> const int32_t * {
       const int64_t x0 = planes ? 0 : int64_t(z % cols) * grid.x, y0 = planes ? 0 : int64_t(z / cols) * grid.y;
       return image->comps[planes ? z : 0].data + (y0 + y) * width + x0;
     },
-    samples,
+    samples.data(),
     grid,
     levels);
   return samples;

@@ -49,8 +49,9 @@ Samples(const GridSize & g, int amplitude, unsigned seed)
   return s;
 }
 
+template <typename B>
 double
-SquaredError(const std::vector<int32_t> & a, const std::vector<int32_t> & b)
+SquaredError(const std::vector<int32_t> & a, const B & b)
 {
   double e = 0.0;
   for (std::size_t i = 0; i < a.size(); ++i)
@@ -95,7 +96,8 @@ TEST(ResidualLayer, ReversibleWithRoomIsExact)
     {
       const auto codestream = dcv::EncodeResidualLayer(samples, g, 1 << 20, dcv::Wavelet::Reversible53, a);
       ASSERT_FALSE(codestream.empty());
-      EXPECT_EQ(dcv::DecodeResidualLayer(codestream, g, "x"), samples) << g.x << "x" << g.y << "x" << g.z;
+      EXPECT_EQ(dcv::DecodeResidualLayer(codestream, g, "x"), dcv::ResidualSamples(samples.begin(), samples.end()))
+        << g.x << "x" << g.y << "x" << g.z;
     }
   }
 }
@@ -426,9 +428,9 @@ TEST(ResidualLayer, SamplesComputedAgainCodeTheSameImage)
       ASSERT_FALSE(best.codestream.empty());
       EXPECT_EQ(best.squaredError, error);
       EXPECT_EQ(best.levels, coding.levels);
-      const std::vector<int32_t> decoded = dcv::DecodeResidualLayer(best.codestream, g, "x", best.levels);
+      const auto decoded = dcv::DecodeResidualLayer(best.codestream, g, "x", best.levels);
       EXPECT_EQ(best.samples, decoded);
-      const std::vector<int32_t> direct = dcv::DecodeResidualLayer(
+      const auto direct = dcv::DecodeResidualLayer(
         dcv::EncodeResidualLayer(
           residual, g, dcv::StoredLayerBytes(best.codestream, g), coding.wavelet, coding.arrangement, coding.levels),
         g,
@@ -448,7 +450,7 @@ TEST(ResidualLayer, SamplesComputedAgainCodeTheSameImage)
     double previous = std::numeric_limits<double>::infinity();
     for (std::size_t budget = 1200; budget <= 4200; budget += 150)
     {
-      const std::vector<int32_t> decoded = dcv::DecodeResidualLayer(
+      const auto decoded = dcv::DecodeResidualLayer(
         dcv::EncodeResidualLayer(residual, g, budget, coding.wavelet, coding.arrangement, coding.levels),
         g,
         "z",
