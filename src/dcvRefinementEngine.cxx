@@ -226,6 +226,7 @@ struct RefinementEngine::Impl
 
   CellHeap<double> byCellError{ ByKey{ &cellWorstVoxel } };  // MaxTetrahedronErrorPosition
   CellHeap<float>  byVoxelError{ ByKey{ &cellWorstVoxel } }; // MaxErrorPosition
+  bool             heapsPending{ false };                    // made from the cells' state when next read
 
   std::vector<uint64_t> isVertex;                   // one bit per voxel
   uint64_t              meshVersion{ 0 };           // counts insertions and removals
@@ -495,7 +496,7 @@ struct RefinementEngine::Impl
     liveCells += cellAlive[id] ? 0 : 1;
     cellAlive[id] = 1;
     squaredError += s.sse;
-    if (push && s.worstVoxel != NoVoxel)
+    if (push && !heapsPending && s.worstVoxel != NoVoxel)
     {
       byCellError.push(HeapEntry<double>{ s.sseSelection, id });
       byVoxelError.push(HeapEntry<float>{ s.worst, id });
@@ -585,15 +586,29 @@ struct RefinementEngine::Impl
     RebuildHeaps();
   }
 
-  // The heaps made anew from the live cells' state (the old entries freed first), with room for the
-  // entries to come up to the next compaction (a push beyond a vector's capacity doubles it). Live cells
-  // own disjoint voxels, so no two entries tie on the key and the worst voxel: the heaps pop the same
-  // cells whether built at once or entry by entry.
+  // Frees the heaps, to be made anew from the live cells' state when next read (EnsureHeaps): not
+  // while rate control codes the mesh after a rescan (20 bytes a cell at its peak), nor at all when
+  // only decimation follows. Live cells own disjoint voxels, so no two entries tie on the key and the
+  // worst voxel, and each live cell has one entry: the heaps pop the same cells whether built at once,
+  // later, or entry by entry.
   void
   RebuildHeaps()
   {
     byCellError = CellHeap<double>(ByKey{ &cellWorstVoxel });
     byVoxelError = CellHeap<float>(ByKey{ &cellWorstVoxel });
+    heapsPending = true;
+  }
+
+  // Makes the heaps from the live cells' state if RebuildHeaps() left them to be made, with room for the
+  // entries to come up to the next compaction (a push beyond a vector's capacity doubles it).
+  void
+  EnsureHeaps()
+  {
+    if (!heapsPending)
+    {
+      return;
+    }
+    heapsPending = false;
     const std::vector<double> &    selectionError = cellSelection.empty() ? cellError : cellSelection;
     const std::size_t              room = liveCells + liveCells / 2 + 8192;
     std::vector<HeapEntry<double>> bySelection;
@@ -619,6 +634,7 @@ struct RefinementEngine::Impl
   {
     byCellError = CellHeap<double>(ByKey{ &cellWorstVoxel });
     byVoxelError = CellHeap<float>(ByKey{ &cellWorstVoxel });
+    heapsPending = false; // nothing to make them from until a rescan
     std::vector<double>().swap(cellError);
     std::vector<double>().swap(cellSelection);
     std::vector<float>().swap(cellWorstError);
@@ -717,6 +733,7 @@ struct RefinementEngine::Impl
   Step()
   {
     CompactIfSparse();
+    EnsureHeaps();
     // Silva: odd steps take the globally worst voxel, even steps the worst voxel of the worst cell.
     const bool     global = (step % 2) == 0;
     const uint32_t cell = global ? Top(byVoxelError, cellAlive) : Top(byCellError, cellAlive);
