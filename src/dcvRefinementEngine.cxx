@@ -1362,6 +1362,10 @@ RefinementEngine::GetApproximation() const
     }
     return index[v];
   };
+  // Sized at once: grown by doubling, the points and values would take up to twice their size, and
+  // rate control codes them at the encoder's peak.
+  a.points.reserve(d.mesh.NumberOfVertices());
+  a.values.reserve(d.mesh.NumberOfVertices());
   a.tetrahedra.reserve(d.mesh.NumberOfFiniteCells());
   d.ForEachIdRange([&](const std::vector<Tetrahedralization::Cell> & cells) {
     for (const auto & c : cells)
