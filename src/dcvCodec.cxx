@@ -19,6 +19,7 @@
 #include "dcvResidualLayer.h"
 #include "dcvArithmeticCoder.h"
 #include "dcvFileFormat.h"
+#include "dcvMemory.h"
 #include "dcvPositionCoder.h"
 
 #include <algorithm>
@@ -158,6 +159,7 @@ EncodePayload(Approximation && a, double q0, double q, bool delaunay)
   // What the mesh's adjacency no longer needs goes before it is built (the rate control's peak).
   std::unordered_map<uint64_t, uint32_t>().swap(indexAt);
   std::vector<double>().swap(a.values);
+  ReturnFreedMemory(); // the map's nodes: small blocks, whose pages the adjacency's buffers do not reuse
   std::vector<Tetrahedron> tetrahedra;
   if (delaunay)
   {
