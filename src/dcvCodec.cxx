@@ -19,6 +19,7 @@
 #include "dcvResidualLayer.h"
 #include "dcvArithmeticCoder.h"
 #include "dcvFileFormat.h"
+#include "dcvMemory.h"
 #include "dcvPositionCoder.h"
 
 #include <algorithm>
@@ -41,11 +42,15 @@ struct Adjacency
   Adjacency(std::size_t n, const std::vector<Tetrahedron> & tetrahedra)
   {
     // Compressed rows by counting, then each short row sorted and deduplicated: much faster than
-    // sorting all vertex pairs at once. A quarter of the rows at a time: before deduplication the
+    // sorting all vertex pairs at once. An eighth of the rows at a time: before deduplication the
     // pairs (6 a tetrahedron) are about five times the rows after it, and rate control encodes at
     // the encoder's peak (norm-256 at 0.25 bpv: 126 MB of pairs at once).
-    constexpr std::size_t parts = 4;
+    constexpr std::size_t parts = 8;
     start.assign(n + 1, 0);
+    // Room for all the rows at once, which hold each edge once: a tetrahedralization of a ball has
+    // n + t + h / 2 - 1 edges (Euler), h <= 2 n hull faces. Grown by doubling and shrunk by a copy,
+    // the rows took up to three times their size at once.
+    neighbour.reserve(std::min(2 * n + tetrahedra.size(), 6 * tetrahedra.size()));
     std::vector<uint32_t> pairs;
     for (std::size_t lo = 0, hi = 0; lo < n; lo = hi)
     {
@@ -74,7 +79,6 @@ struct Adjacency
         start[lo + r + 1] = uint32_t(neighbour.size());
       }
     }
-    neighbour.shrink_to_fit();
   }
 };
 
@@ -155,6 +159,7 @@ EncodePayload(Approximation && a, double q0, double q, bool delaunay)
   // What the mesh's adjacency no longer needs goes before it is built (the rate control's peak).
   std::unordered_map<uint64_t, uint32_t>().swap(indexAt);
   std::vector<double>().swap(a.values);
+  ReturnFreedMemory(); // the map's nodes: small blocks, whose pages the adjacency's buffers do not reuse
   std::vector<Tetrahedron> tetrahedra;
   if (delaunay)
   {

@@ -474,6 +474,7 @@ Run(const EncoderInput & input, const EncoderOptions & o, bool coded, std::vecto
   r.header.quantizationOrigin = parameters.quantizationOrigin;
   r.header.scale = parameters.scale;
   r.quantizationStep = parameters.quantizationStep;
+  MapLargeAllocations();
   // Owned here so that its state (the mesh, the heaps: about 1.5 KiB a point) is freed before the residual
   // layers, which need volume-sized buffers of their own.
   auto               owned = std::make_unique<RefinementEngine>(input.voxels, grid, parameters);

@@ -17,6 +17,7 @@
  *=========================================================================*/
 #include "dcvRateControl.h"
 #include "dcvCodec.h"
+#include "dcvMemory.h"
 
 #include <algorithm>
 #include <cmath>
@@ -53,6 +54,9 @@ ApproximateToBudget(RefinementEngine & engine, std::size_t payloadBytes, double 
   // (size, squared error) of encoded states.
   std::vector<std::pair<double, double>> states;
   auto                                   encode = [&] {
+    // The pages the last stage freed (a rescan's, the least squares') go back before the mesh is coded,
+    // the encoder's peak: about 65,000 KiB of them at norm-256's last steps at 0.25 bpv.
+    ReturnFreedMemory();
     result.payload = EncodePayload(engine.GetApproximation(), q0, engine.GetParameters().quantizationStep, true);
     states.emplace_back(double(result.payload.size()), engine.GetSquaredError());
   };

@@ -226,6 +226,7 @@ struct RefinementEngine::Impl
 
   CellHeap<double> byCellError{ ByKey{ &cellWorstVoxel } };  // MaxTetrahedronErrorPosition
   CellHeap<float>  byVoxelError{ ByKey{ &cellWorstVoxel } }; // MaxErrorPosition
+  bool             heapsPending{ false };                    // made from the cells' state when next read
 
   std::vector<uint64_t> isVertex;                   // one bit per voxel
   uint64_t              meshVersion{ 0 };           // counts insertions and removals
@@ -495,7 +496,7 @@ struct RefinementEngine::Impl
     liveCells += cellAlive[id] ? 0 : 1;
     cellAlive[id] = 1;
     squaredError += s.sse;
-    if (push && s.worstVoxel != NoVoxel)
+    if (push && !heapsPending && s.worstVoxel != NoVoxel)
     {
       byCellError.push(HeapEntry<double>{ s.sseSelection, id });
       byVoxelError.push(HeapEntry<float>{ s.worst, id });
@@ -585,15 +586,29 @@ struct RefinementEngine::Impl
     RebuildHeaps();
   }
 
-  // The heaps made anew from the live cells' state (the old entries freed first), with room for the
-  // entries to come up to the next compaction (a push beyond a vector's capacity doubles it). Live cells
-  // own disjoint voxels, so no two entries tie on the key and the worst voxel: the heaps pop the same
-  // cells whether built at once or entry by entry.
+  // Frees the heaps, to be made anew from the live cells' state when next read (EnsureHeaps): not
+  // while rate control codes the mesh after a rescan (20 bytes a cell at its peak), nor at all when
+  // only decimation follows. Live cells own disjoint voxels, so no two entries tie on the key and the
+  // worst voxel, and each live cell has one entry: the heaps pop the same cells whether built at once,
+  // later, or entry by entry.
   void
   RebuildHeaps()
   {
     byCellError = CellHeap<double>(ByKey{ &cellWorstVoxel });
     byVoxelError = CellHeap<float>(ByKey{ &cellWorstVoxel });
+    heapsPending = true;
+  }
+
+  // Makes the heaps from the live cells' state if RebuildHeaps() left them to be made, with room for the
+  // entries to come up to the next compaction (a push beyond a vector's capacity doubles it).
+  void
+  EnsureHeaps()
+  {
+    if (!heapsPending)
+    {
+      return;
+    }
+    heapsPending = false;
     const std::vector<double> &    selectionError = cellSelection.empty() ? cellError : cellSelection;
     const std::size_t              room = liveCells + liveCells / 2 + 8192;
     std::vector<HeapEntry<double>> bySelection;
@@ -619,6 +634,7 @@ struct RefinementEngine::Impl
   {
     byCellError = CellHeap<double>(ByKey{ &cellWorstVoxel });
     byVoxelError = CellHeap<float>(ByKey{ &cellWorstVoxel });
+    heapsPending = false; // nothing to make them from until a rescan
     std::vector<double>().swap(cellError);
     std::vector<double>().swap(cellSelection);
     std::vector<float>().swap(cellWorstError);
@@ -650,34 +666,19 @@ struct RefinementEngine::Impl
     return order;
   }
 
-  // Cells worked a part at a time (ForEachChunk, ForEachIdRange): their results in hand stay a few MB.
+  // Cells worked a part at a time (ForEachIdRange): their results in hand stay a few MB.
   static constexpr std::size_t chunk = std::size_t(1) << 18;
 
-  // Calls f(first, last, order) for consecutive ranges of positions in `cells`, order being the range's
-  // positions in SpatialOrder. Callers work a range on the threads, then use its results in position
-  // order: the same results as for the whole list at once, without holding a result for every cell
-  // (48 to 112 bytes a cell: gigabytes at millions of cells).
+  // Calls f(cells) with the live cells of consecutive ranges of ids (`ids` at a time), by id: all the
+  // cells a part at a time, never a list of all of them (20 bytes a cell).
   template <typename F>
   void
-  ForEachChunk(const std::vector<Tetrahedralization::Cell> & cells, F && f) const
-  {
-    for (std::size_t first = 0; first < cells.size(); first += chunk)
-    {
-      const std::size_t last = std::min(cells.size(), first + chunk);
-      f(first, last, SpatialOrder(cells, first, last));
-    }
-  }
-
-  // Calls f(cells) with the live cells of consecutive ranges of ids, by id: all the cells a part at a
-  // time, never a list of all of them (20 bytes a cell).
-  template <typename F>
-  void
-  ForEachIdRange(F && f) const
+  ForEachIdRange(F && f, std::size_t ids = chunk) const
   {
     std::vector<Tetrahedralization::Cell> cells;
-    for (std::size_t first = 0; first < mesh.NumberOfCellIds(); first += chunk)
+    for (std::size_t first = 0; first < mesh.NumberOfCellIds(); first += ids)
     {
-      mesh.FiniteCells(uint32_t(first), uint32_t(std::min(mesh.NumberOfCellIds(), first + chunk)), cells);
+      mesh.FiniteCells(uint32_t(first), uint32_t(std::min(mesh.NumberOfCellIds(), first + ids)), cells);
       f(cells);
     }
   }
@@ -732,6 +733,7 @@ struct RefinementEngine::Impl
   Step()
   {
     CompactIfSparse();
+    EnsureHeaps();
     // Silva: odd steps take the globally worst voxel, even steps the worst voxel of the worst cell.
     const bool     global = (step % 2) == 0;
     const uint32_t cell = global ? Top(byVoxelError, cellAlive) : Top(byCellError, cellAlive);
@@ -1030,74 +1032,81 @@ RefinementEngine::SetQuantizationStep(double step)
 
 namespace
 {
-/** The pattern of the normal equations' sparse matrix, its values 0: each vertex and the vertices it
+/** The pattern of the normal equations' sparse matrix, its values not set: each vertex and the vertices it
  * shares a cell with (column c holds the rows of c's cells' vertices, sorted; the matrix is symmetric).
- * Built from the cells of each vertex (4 ints a cell), each column's rows marked once. */
+ * `cells` holds each cell's vertices as rows. Built from the cells of each column (an int a cell and
+ * vertex), a part of the columns at a time: all of them at once (16 bytes a cell) beside the cells and
+ * the matrix set the encoder's peak (norm-256 at 0.25 bpv). */
 Eigen::SparseMatrix<double>
-NormalPattern(int n, const std::vector<int> & index, const std::vector<Tetrahedralization::Cell> & cells)
+NormalPattern(int n, const std::vector<std::array<int, 4>> & cells)
 {
   std::vector<int> first(std::size_t(n) + 1, 0);
   for (const auto & c : cells)
-    for (auto v : c.vertices)
-      ++first[std::size_t(index[v]) + 1];
+    for (int r : c)
+      ++first[std::size_t(r) + 1];
   for (int c = 0; c < n; ++c)
     first[c + 1] += first[c];
-  std::vector<uint32_t> incident(static_cast<std::size_t>(first[n]));
-  {
-    std::vector<int> fill(first.begin(), first.end() - 1);
-    for (std::size_t i = 0; i < cells.size(); ++i)
-      for (auto v : cells[i].vertices)
-        incident[std::size_t(fill[index[v]]++)] = uint32_t(i);
-  }
   Eigen::SparseMatrix<double> M(n, n);
-  int * const                 outer = M.outerIndexPtr();
-  std::vector<int>            mark(std::size_t(n), -1);
-  // Calls row(r) for each row of column c once: the first visit of r in c marks it.
-  auto forEachRow = [&](int c, auto && row) {
-    for (int k = first[c]; k < first[c + 1]; ++k)
-      for (auto w : cells[incident[std::size_t(k)]].vertices)
+  {
+    constexpr int         parts = 4;
+    std::vector<uint32_t> incident;
+    std::vector<int>      mark(std::size_t(n), -1);
+    // Calls column(c, forEachRow) for every column c, in order; forEachRow(row) calls row(r) for each row
+    // of c once (the first visit of r in c marks it). Each part's incidence is made anew for each pass.
+    auto forEachColumn = [&](auto && column) {
+      std::fill(mark.begin(), mark.end(), -1);
+      for (int lo = 0, hi = 0; lo < n; lo = hi)
       {
-        const int r = index[w];
-        if (mark[std::size_t(r)] != c)
-        {
-          mark[std::size_t(r)] = c;
-          row(r);
-        }
+        hi = std::min(n, lo + (n + parts - 1) / parts);
+        const int base = first[lo];
+        incident.resize(std::size_t(first[hi] - base));
+        std::vector<int> fill(first.begin() + lo, first.begin() + hi);
+        for (std::size_t i = 0; i < cells.size(); ++i)
+          for (int r : cells[i])
+            if (r >= lo && r < hi)
+              incident[std::size_t(fill[r - lo]++ - base)] = uint32_t(i);
+        for (int c = lo; c < hi; ++c)
+          column(c, [&](auto && row) {
+            for (int k = first[c]; k < first[c + 1]; ++k)
+              for (int r : cells[incident[std::size_t(k - base)]])
+                if (mark[std::size_t(r)] != c)
+                {
+                  mark[std::size_t(r)] = c;
+                  row(r);
+                }
+          });
       }
-  };
-  outer[0] = 0;
-  for (int c = 0; c < n; ++c)
-  {
-    int count = 0;
-    forEachRow(c, [&](int) { ++count; });
-    outer[c + 1] = outer[c] + count;
+    };
+    int * const outer = M.outerIndexPtr();
+    outer[0] = 0;
+    forEachColumn([&](int c, auto && forEachRow) {
+      int count = 0;
+      forEachRow([&](int) { ++count; });
+      outer[c + 1] = outer[c] + count;
+    });
+    M.resizeNonZeros(outer[n]);
+    int * const inner = M.innerIndexPtr();
+    forEachColumn([&](int c, auto && forEachRow) {
+      int at = outer[c];
+      forEachRow([&](int r) { inner[at++] = r; });
+      std::sort(inner + outer[c], inner + at);
+    });
   }
-  M.resizeNonZeros(outer[n]);
-  int * const inner = M.innerIndexPtr();
-  std::fill(mark.begin(), mark.end(), -1);
-  for (int c = 0; c < n; ++c)
-  {
-    int at = outer[c];
-    forEachRow(c, [&](int r) { inner[at++] = r; });
-    std::sort(inner + outer[c], inner + at);
-  }
-  std::fill_n(M.valuePtr(), outer[n], 0.0);
   return M;
 }
 
-/** Adds the blocks of cells first to last - 1 (the upper triangle of each cell's 4x4, by rows; blocks[0]
- * is cell `first`'s) into M, in cell order, then j, then k: the very sums (term by term, in the same
+/** Adds the blocks of `cells` (the upper triangle of each cell's 4x4, by rows; blocks[i] is cells[i]'s)
+ * into M, in cell order, then j, then k: the very sums (term by term, in the same
  * order) of Eigen's setFromTriplets over 16 triplets a cell, without the triplets (16 x 16 bytes a cell)
  * and the transposed copy it sorts them in: gigabytes at 0.25 bpv on norm-256. */
 void
 AddCellBlocks(Eigen::SparseMatrix<double> & M, const std::vector<int> & index,
-              const std::vector<Tetrahedralization::Cell> & cells, std::size_t first, std::size_t last,
-              const std::vector<std::array<double, 10>> & blocks)
+              const std::vector<Tetrahedralization::Cell> & cells, const std::vector<std::array<double, 10>> & blocks)
 {
   const int *    outer = M.outerIndexPtr();
   const int *    inner = M.innerIndexPtr();
   double * const value = M.valuePtr();
-  for (std::size_t i = first; i < last; ++i)
+  for (std::size_t i = 0; i < cells.size(); ++i)
   {
     const auto & v = cells[i].vertices;
     for (int j = 0; j < 4; ++j)
@@ -1107,7 +1116,7 @@ AddCellBlocks(Eigen::SparseMatrix<double> & M, const std::vector<int> & index,
         const int row = index[v[j]], column = index[v[k]];
         const int at = int(std::lower_bound(inner + outer[column], inner + outer[column + 1], row) - inner);
         const int lo = std::min(j, k), hi = std::max(j, k);
-        value[at] += blocks[i - first][lo * 4 - lo * (lo + 1) / 2 + hi];
+        value[at] += blocks[i][lo * 4 - lo * (lo + 1) / 2 + hi];
       }
     }
   }
@@ -1124,7 +1133,13 @@ RefinementEngine::OptimizeValues()
   if (d.solvedMesh != d.meshVersion)
   {
     d.ReleaseCellState(); // the rescan below makes it again
-    auto cells = d.mesh.FiniteCells();
+    // The ids of dead cells go while there is no state to move: the rescan sizes the state to the ids
+    // (21 bytes an id, and 8 for the cell's handle), and rate control codes the mesh after it, at the
+    // encoder's peak (norm-256 at 0.25 bpv: 1.22 ids a live cell). The live cells keep their order.
+    if (d.mesh.NumberOfCellIds() > d.liveCells)
+    {
+      d.mesh.CompactCellIds();
+    }
     // Compact indices of the live vertices.
     std::vector<int> index(d.mesh.NumberOfVertexIds(), -1);
     int              n = 0;
@@ -1136,85 +1151,100 @@ RefinementEngine::OptimizeValues()
       }
     }
     // Normal equations of min sum_x (I(x) - sum_k v_k phi_k(x))^2: M_jk = sum phi_j phi_k, b_j = sum I phi_j.
+    // The pattern from each cell's vertices as rows (16 bytes a cell), a list gone before the values
+    // are first touched: the cells, the pattern's work and the matrix at once set the encoder's peak.
+    Eigen::SparseMatrix<double> M = [&] {
+      std::vector<std::array<int, 4>> rows;
+      rows.reserve(d.liveCells);
+      d.ForEachIdRange([&](const std::vector<Tetrahedralization::Cell> & cells) {
+        for (const auto & c : cells)
+          rows.push_back({ index[c.vertices[0]], index[c.vertices[1]], index[c.vertices[2]], index[c.vertices[3]] });
+      });
+      return NormalPattern(n, rows);
+    }();
+    std::fill_n(M.valuePtr(), M.nonZeros(), 0.0);
     // Each cell's 4x4 block (its upper triangle) and 4 right-hand-side terms on a thread into its own
-    // slots, a chunk of cells at a time; M and b are then summed in cell order.
-    Eigen::SparseMatrix<double>         M = NormalPattern(n, index, cells);
+    // slots, the cells of a range of ids at a time (a quarter of the usual range: their blocks are 152
+    // bytes a cell beside the matrix); M and b are then summed in cell order (by id).
     Eigen::VectorXd                     b = Eigen::VectorXd::Zero(n);
     std::vector<std::array<double, 10>> blocks;
     std::vector<std::array<double, 4>>  rhs;
-    d.ForEachChunk(cells, [&](std::size_t first, std::size_t last, const std::vector<uint32_t> & order) {
-      blocks.resize(last - first);
-      rhs.resize(last - first);
-      ParallelFor(order.size(), 64, [&](std::size_t o) {
-        const std::size_t        i = order[o];
-        const auto &             c = cells[i];
-        std::array<GridPoint, 4> p;
-        for (int k = 0; k < 4; ++k)
-        {
-          p[k] = d.mesh.Point(c.vertices[k]);
-        }
-        std::array<LinearFunction, 3> phi;
-        for (int k = 0; k < 3; ++k)
-        {
-          std::array<double, 4> unit{ 0, 0, 0, 0 };
-          unit[k] = 1.0;
-          phi[k] = LinearFunction(CanonicalTetrahedron(p, unit));
-        }
-        double m[4][4] = {};
-        double r[4] = {};
-        // Along a row each weight is a + g u (u = x - x0), so a row adds a_j a_k count + (a_j g_k + a_k g_j)
-        // sum u + g_j g_k sum u^2 to M_jk and a_j sum I + g_j sum u I to b_j: the voxels are read for sum I
-        // and sum u I only (sum u and sum u^2 are closed forms, exact). The same values as summing w_j w_k
-        // per voxel up to rounding; the files of the dev volumes came out the same.
-        ForEachSpanPrefetched(d.grid, p, d.image, nullptr, nullptr, [&](int32_t y, int32_t z, int32_t x0, int32_t x1) {
-          const float * row = d.image + d.grid.Offset(0, y, z);
-          double        sumI = 0.0, sumUI = 0.0;
-          for (int32_t x = x0; x <= x1; ++x)
+    d.ForEachIdRange(
+      [&](const std::vector<Tetrahedralization::Cell> & cells) {
+        const auto order = d.SpatialOrder(cells, 0, cells.size());
+        blocks.resize(cells.size());
+        rhs.resize(cells.size());
+        ParallelFor(order.size(), 64, [&](std::size_t o) {
+          const std::size_t        i = order[o];
+          const auto &             c = cells[i];
+          std::array<GridPoint, 4> p;
+          for (int k = 0; k < 4; ++k)
           {
-            const double value = double(row[x]);
-            sumI += value;
-            sumUI += double(x - x0) * value;
+            p[k] = d.mesh.Point(c.vertices[k]);
           }
-          const double count = double(x1 - x0 + 1);
-          const double sumU = count * (count - 1.0) / 2.0;
-          const double sumUU = (count - 1.0) * count * (2.0 * count - 1.0) / 6.0;
-          double       a[4], g[4];
+          std::array<LinearFunction, 3> phi;
           for (int k = 0; k < 3; ++k)
           {
-            a[k] = phi[k](x0, y, z);
-            g[k] = phi[k].gx;
+            std::array<double, 4> unit{ 0, 0, 0, 0 };
+            unit[k] = 1.0;
+            phi[k] = LinearFunction(CanonicalTetrahedron(p, unit));
           }
-          a[3] = 1.0 - a[0] - a[1] - a[2];
-          g[3] = -(g[0] + g[1] + g[2]);
-          for (int j = 0; j < 4; ++j)
+          double m[4][4] = {};
+          double r[4] = {};
+          // Along a row each weight is a + g u (u = x - x0), so a row adds a_j a_k count + (a_j g_k + a_k g_j)
+          // sum u + g_j g_k sum u^2 to M_jk and a_j sum I + g_j sum u I to b_j: the voxels are read for sum I
+          // and sum u I only (sum u and sum u^2 are closed forms, exact). The same values as summing w_j w_k
+          // per voxel up to rounding; the files of the dev volumes came out the same.
+          ForEachSpanPrefetched(
+            d.grid, p, d.image, nullptr, nullptr, [&](int32_t y, int32_t z, int32_t x0, int32_t x1) {
+              const float * row = d.image + d.grid.Offset(0, y, z);
+              double        sumI = 0.0, sumUI = 0.0;
+              for (int32_t x = x0; x <= x1; ++x)
+              {
+                const double value = double(row[x]);
+                sumI += value;
+                sumUI += double(x - x0) * value;
+              }
+              const double count = double(x1 - x0 + 1);
+              const double sumU = count * (count - 1.0) / 2.0;
+              const double sumUU = (count - 1.0) * count * (2.0 * count - 1.0) / 6.0;
+              double       a[4], g[4];
+              for (int k = 0; k < 3; ++k)
+              {
+                a[k] = phi[k](x0, y, z);
+                g[k] = phi[k].gx;
+              }
+              a[3] = 1.0 - a[0] - a[1] - a[2];
+              g[3] = -(g[0] + g[1] + g[2]);
+              for (int j = 0; j < 4; ++j)
+              {
+                r[j] += a[j] * sumI + g[j] * sumUI;
+                for (int k = j; k < 4; ++k)
+                {
+                  m[j][k] += a[j] * a[k] * count + (a[j] * g[k] + a[k] * g[j]) * sumU + g[j] * g[k] * sumUU;
+                }
+              }
+            });
+          for (int j = 0, e = 0; j < 4; ++j)
           {
-            r[j] += a[j] * sumI + g[j] * sumUI;
+            rhs[i][j] = r[j];
             for (int k = j; k < 4; ++k)
-            {
-              m[j][k] += a[j] * a[k] * count + (a[j] * g[k] + a[k] * g[j]) * sumU + g[j] * g[k] * sumUU;
-            }
+              blocks[i][e++] = m[j][k];
           }
         });
-        for (int j = 0, e = 0; j < 4; ++j)
+        for (std::size_t i = 0; i < cells.size(); ++i)
         {
-          rhs[i - first][j] = r[j];
-          for (int k = j; k < 4; ++k)
-            blocks[i - first][e++] = m[j][k];
+          for (int j = 0; j < 4; ++j)
+          {
+            b[index[cells[i].vertices[j]]] += rhs[i][j];
+          }
         }
-      });
-      for (std::size_t i = first; i < last; ++i)
-      {
-        for (int j = 0; j < 4; ++j)
-        {
-          b[index[cells[i].vertices[j]]] += rhs[i - first][j];
-        }
-      }
-      AddCellBlocks(M, index, cells, first, last, blocks);
-    });
+        AddCellBlocks(M, index, cells, blocks);
+      },
+      Impl::chunk / 4);
     // Gone before the solver's vectors come.
     std::vector<std::array<double, 10>>().swap(blocks);
     std::vector<std::array<double, 4>>().swap(rhs);
-    std::vector<Tetrahedralization::Cell>().swap(cells);
     Eigen::VectorXd current(n);
     for (VertexId v = 0; v < index.size(); ++v)
     {
@@ -1339,6 +1369,10 @@ RefinementEngine::GetApproximation() const
     }
     return index[v];
   };
+  // Sized at once: grown by doubling, the points and values would take up to twice their size, and
+  // rate control codes them at the encoder's peak.
+  a.points.reserve(d.mesh.NumberOfVertices());
+  a.values.reserve(d.mesh.NumberOfVertices());
   a.tetrahedra.reserve(d.mesh.NumberOfFiniteCells());
   d.ForEachIdRange([&](const std::vector<Tetrahedralization::Cell> & cells) {
     for (const auto & c : cells)
