@@ -279,10 +279,10 @@ InverseInterSlice(const std::function<const int32_t *(int32_t y, int32_t z)> & s
     for (int32_t z = 0; z < grid.z; ++z)
     {
       const int32_t * in = source(y, z);
-      int32_t *       out = narrow.data() + int64_t(z) * width;
+      int32_t *       to = narrow.data() + int64_t(z) * width;
       for (int64_t c = 0; c < width; ++c)
       {
-        out[c] = in[c];
+        to[c] = in[c];
         lowest = std::min(lowest, in[c]);
         highest = std::max(highest, in[c]);
       }
