@@ -206,7 +206,7 @@ AddResidualToSlices(const Approximation & a, T * out, int32_t z0, int32_t z1)
  * cell's arithmetic, so it is left to the cells. */
 template <typename T>
 bool
-IsOneValue(const Approximation & a, double & value)
+IsConstantSpline(const Approximation & a, double & value)
 {
   if (a.values.empty() || a.tetrahedra.empty() || a.grid.x < 2 || a.grid.y < 2 || a.grid.z < 2)
     return false;
@@ -250,7 +250,7 @@ Rasterize(const Approximation & a, T * out, unsigned int threads = 0)
   }
   const bool residual = !a.residual.samples.empty();
   double     one = 0.0;
-  if (detail::IsOneValue<T>(a, one))
+  if (detail::IsConstantSpline<T>(a, one))
   {
     // One pass over the voxels instead of two (the cells, then the layer).
     const T        value = ConvertValue<T>(one);

@@ -249,7 +249,7 @@ WriteVolume(const TImage * image, const std::string & output, bool force, bool c
     const std::string limit = pending.LimitReached();
     throw Failure("cannot write " + Quoted(output) + ": " + (limit.empty() ? e.GetDescription() : limit));
   }
-  pending.StartFlush(); // the disk writes while the file is read back
+  pending.StartFlush(); // the disk writes while the file is checked
   // ITK's MetaImage, NIfTI and Analyze writers report a failed write (a full disk) on stderr only, and
   // their readers take the short file without an error: what was written is read back and compared.
   // Uncompressed, a file of one piece ends with the voxels as they are in memory (NRRD, MetaImage): then
