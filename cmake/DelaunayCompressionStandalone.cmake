@@ -18,8 +18,12 @@ set(DelaunayCompression_ITK_COMPONENTS ITKCommon ITKMesh ITKIOImageBase ITKIOMes
 set(DelaunayCompression_ITK_IO_COMPONENTS ITKIONRRD ITKIONIFTI ITKIOMeta ITKIOGDCM ITKIOMeshVTK)
 find_package(ITK 5.2 REQUIRED COMPONENTS ${DelaunayCompression_ITK_COMPONENTS} ${DelaunayCompression_ITK_IO_COMPONENTS}
   ITKTestKernel)
+# GDCM is not linked into the programs nor registered at their start: they load it when they meet DICOM
+# (tools/common/dcvGDCM.h). The tests, which call it directly, link all of ITK_LIBRARIES.
+list(REMOVE_ITEM ITK_ImageIO GDCM)
 include(${ITK_USE_FILE})
 set(DelaunayCompression_PROGRAM_LIBRARIES ${ITK_LIBRARIES})
+list(REMOVE_ITEM DelaunayCompression_PROGRAM_LIBRARIES ITKIOGDCM)
 
 # Installed programs find the module's library relative to themselves, whatever the prefix.
 file(RELATIVE_PATH _dcv_bin_to_lib "/${CMAKE_INSTALL_BINDIR}" "/${CMAKE_INSTALL_LIBDIR}")

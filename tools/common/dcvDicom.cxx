@@ -16,10 +16,10 @@
  *
  *=========================================================================*/
 #include "dcvDicom.h"
+#include "dcvGDCM.h"
 #include "dcvTools.h"
 
-#include "itkGDCMImageIO.h"
-#include "itkGDCMSeriesFileNames.h"
+#include "itkImageIOFactory.h"
 #include "itkMetaDataObject.h"
 
 #include <algorithm>
@@ -51,10 +51,10 @@ Tag(const itk::MetaDataDictionary & d, const std::string & key)
 }
 
 /** The header of one file (GDCM reads up to the pixel data). */
-itk::GDCMImageIO::Pointer
+itk::ImageIOBase::Pointer
 ReadHeader(const std::string & file)
 {
-  auto io = itk::GDCMImageIO::New();
+  auto io = GDCM().newImageIO();
   io->SetFileName(file);
   try
   {
@@ -116,27 +116,30 @@ IsDicomInput(const std::string & path)
   {
     return true;
   }
-  auto io = itk::GDCMImageIO::New();
-  return fs::is_regular_file(path) && io->CanReadFile(path.c_str());
+  if (!fs::is_regular_file(path))
+  {
+    return false;
+  }
+  // The other formats first, so that GDCM is loaded only for what none of them reads.
+  if (const auto io = itk::ImageIOFactory::CreateImageIO(path.c_str(), itk::IOFileModeEnum::ReadMode))
+  {
+    return std::string(io->GetNameOfClass()) == "GDCMImageIO"; // registered once GDCM was loaded
+  }
+  return GDCM().newImageIO()->CanReadFile(path.c_str());
 }
 
 std::vector<std::pair<std::string, std::vector<std::string>>>
 ListDicomSeries(const std::string & directory)
 {
-  auto names = itk::GDCMSeriesFileNames::New();
-  names->SetUseSeriesDetails(false); // group by Series Instance UID alone: size and geometry are checked later
-  names->SetDirectory(directory);
-  std::vector<std::pair<std::string, std::vector<std::string>>> series;
+  const auto & gdcm = GDCM();
   try
   {
-    for (const auto & uid : names->GetSeriesUIDs())
-      series.emplace_back(uid, names->GetFileNames(uid));
+    return gdcm.seriesFileNames(directory);
   }
   catch (const itk::ExceptionObject & e)
   {
     throw Failure("cannot list the DICOM series of " + Quoted(directory) + ": " + e.GetDescription());
   }
-  return series;
 }
 
 DicomSeries

@@ -20,7 +20,7 @@
 #include "dcvDicom.h"
 #include "dcvTools.h"
 
-#include "itkGDCMImageIO.h"
+#include "dcvGDCM.h"
 #include "itkImageSeriesReader.h"
 #include "itkLinearInterpolateImageFunction.h"
 #include "itkResampleImageFilter.h"
@@ -36,7 +36,7 @@ ReadResampledDicomSeries(const DicomSeries & series, const DicomResampling & r)
 {
   using ImageType = itk::Image<float, 3>;
   auto reader = itk::ImageSeriesReader<ImageType>::New();
-  reader->SetImageIO(itk::GDCMImageIO::New());
+  reader->SetImageIO(GDCM().newImageIO());
   reader->SetFileNames(series.files);
   reader->MetaDataDictionaryArrayUpdateOff();
   // The reader would warn of the uneven spacing that is resampled here.

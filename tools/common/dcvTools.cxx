@@ -41,6 +41,28 @@ namespace fs = std::filesystem;
 
 namespace dcv::tools
 {
+namespace
+{
+/** ITK's ImageIO for `path`, or null; GDCM's library is loaded (registering its ImageIO) only when no other
+ * format takes the name, as for a .dcm file. */
+itk::ImageIOBase::Pointer
+CreateImageIO(const std::string & path, itk::IOFileModeEnum mode)
+{
+  if (auto io = itk::ImageIOFactory::CreateImageIO(path.c_str(), mode))
+  {
+    return io;
+  }
+  try
+  {
+    GDCM();
+  }
+  catch (const Failure &)
+  {
+    return nullptr; // told as a name no format takes
+  }
+  return itk::ImageIOFactory::CreateImageIO(path.c_str(), mode);
+}
+} // namespace
 
 itk::ImageIOBase::Pointer
 ReadVolumeHeader(const std::string & path)
@@ -53,7 +75,7 @@ ReadVolumeHeader(const std::string & path)
   {
     throw Failure("cannot read " + Quoted(path) + ": it is a directory, not a volume file");
   }
-  auto io = itk::ImageIOFactory::CreateImageIO(path.c_str(), itk::IOFileModeEnum::ReadMode);
+  auto io = CreateImageIO(path, itk::IOFileModeEnum::ReadMode);
   if (!io)
   {
     throw Failure("cannot read " + Quoted(path) + ": not an image format ITK knows (NRRD, NIfTI, MetaImage, ...)");
@@ -143,7 +165,7 @@ CheckOutput(const std::string & output, bool force, bool dcvFile)
       throw UsageError("cannot write " + Quoted(output) + ": a compressed volume's file name ends in .dcv");
     }
   }
-  else if (!itk::ImageIOFactory::CreateImageIO(output.c_str(), itk::IOFileModeEnum::WriteMode))
+  else if (!CreateImageIO(output, itk::IOFileModeEnum::WriteMode))
   {
     throw UsageError("cannot write " + Quoted(output) +
                      ": no image format is known for that file name "

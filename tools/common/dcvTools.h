@@ -26,11 +26,11 @@
 #include "itkDCVImageInformation.h"
 #include "itkImageFileReader.h"
 #include "itkImageFileWriter.h"
-#include "itkGDCMImageIO.h"
 #include "itkImageIOBase.h"
 #include "itkImageSeriesReader.h"
 
 #include "dcvDicom.h"
+#include "dcvGDCM.h"
 
 #include <cstdint>
 #include <cstring>
@@ -122,7 +122,7 @@ ReadVolume(const VolumeInput & v)
     return RoundedImage<T>(ReadResampledDicomSeries(v.dicom, v.resampling).GetPointer());
   }
   auto reader = itk::ImageSeriesReader<itk::Image<T, 3>>::New();
-  reader->SetImageIO(itk::GDCMImageIO::New());
+  reader->SetImageIO(GDCM().newImageIO());
   reader->SetFileNames(v.dicom.files);
   reader->MetaDataDictionaryArrayUpdateOff();
   try

@@ -76,7 +76,7 @@ IsDataFileOfAHeader(const std::string & name, const std::set<std::string> & file
 std::string
 SeriesInstanceUID(const std::string & file, const std::string & fallback)
 {
-  auto io = itk::GDCMImageIO::New();
+  auto io = GDCM().newImageIO();
   io->SetFileName(file);
   try
   {
@@ -131,10 +131,11 @@ ListDirectory(const fs::path & tree, const fs::path & directory, const fs::path 
   }
   std::set<std::string> dicom;
   // GDCM's series scan is run only where a file is DICOM: it warns on a directory without any.
-  auto       gdcm = itk::GDCMImageIO::New();
-  const bool hasDicom = std::any_of(others.begin(), others.end(), [&](const std::string & name) {
-    return gdcm->CanReadFile((directory / name).string().c_str());
-  });
+  const bool hasDicom = !others.empty() && [&] {
+    const auto gdcm = GDCM().newImageIO();
+    return std::any_of(others.begin(), others.end(),
+                       [&](const std::string & name) { return gdcm->CanReadFile((directory / name).string().c_str()); });
+  }();
   if (hasDicom)
   {
     for (const auto & [uid, files] : ListDicomSeries(directory.string()))
