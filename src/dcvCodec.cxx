@@ -20,6 +20,7 @@
 #include "dcvArithmeticCoder.h"
 #include "dcvFileFormat.h"
 #include "dcvMemory.h"
+#include "dcvParallel.h"
 #include "dcvPositionCoder.h"
 
 #include <algorithm>
@@ -44,39 +45,54 @@ struct Adjacency
     // Compressed rows by counting, then each short row sorted and deduplicated: much faster than
     // sorting all vertex pairs at once. An eighth of the rows at a time: before deduplication the
     // pairs (6 a tetrahedron) are about five times the rows after it, and rate control encodes at
-    // the encoder's peak (norm-256 at 0.25 bpv: 126 MB of pairs at once).
+    // the encoder's peak (norm-256 at 0.25 bpv: 126 MB of pairs at once). As many eighths at once as
+    // there are threads, each into its own rows, appended in order: the same rows.
     constexpr std::size_t parts = 8;
     start.assign(n + 1, 0);
     // Room for all the rows at once, which hold each edge once: a tetrahedralization of a ball has
     // n + t + h / 2 - 1 edges (Euler), h <= 2 n hull faces. Grown by doubling and shrunk by a copy,
     // the rows took up to three times their size at once.
     neighbour.reserve(std::min(2 * n + tetrahedra.size(), 6 * tetrahedra.size()));
-    std::vector<uint32_t> pairs;
-    for (std::size_t lo = 0, hi = 0; lo < n; lo = hi)
+    const std::size_t                  rowsPerPart = (n + parts - 1) / parts;
+    const std::size_t                  together = std::min<std::size_t>(parts, CurrentThreads());
+    std::vector<std::vector<uint32_t>> rows(together), ends(together);
+    for (std::size_t batch = 0; batch < parts; batch += together)
     {
-      hi = std::min(n, lo + (n + parts - 1) / parts);
-      std::vector<uint32_t> first(hi - lo + 1, 0);
-      for (const auto & t : tetrahedra)
-        for (int i = 0; i < 4; ++i)
-          if (t[i] >= lo && t[i] < hi)
-            for (int j = 0; j < 4; ++j)
-              first[t[i] - lo + 1] += t[j] < t[i] ? 1 : 0;
-      for (std::size_t r = 0; r < hi - lo; ++r)
-        first[r + 1] += first[r];
-      pairs.assign(first.back(), 0);
-      std::vector<uint32_t> fill(first.begin(), first.end() - 1);
-      for (const auto & t : tetrahedra)
-        for (int i = 0; i < 4; ++i)
-          if (t[i] >= lo && t[i] < hi)
-            for (int j = 0; j < 4; ++j)
-              if (t[j] < t[i])
-                pairs[fill[t[i] - lo]++] = t[j];
-      for (std::size_t r = 0; r < hi - lo; ++r)
+      ParallelFor(std::min(together, parts - batch), 1, [&](std::size_t k) {
+        const std::size_t lo = std::min(n, (batch + k) * rowsPerPart), hi = std::min(n, lo + rowsPerPart);
+        std::vector<uint32_t> first(hi - lo + 1, 0);
+        for (const auto & t : tetrahedra)
+          for (int i = 0; i < 4; ++i)
+            if (t[i] >= lo && t[i] < hi)
+              for (int j = 0; j < 4; ++j)
+                first[t[i] - lo + 1] += t[j] < t[i] ? 1 : 0;
+        for (std::size_t r = 0; r < hi - lo; ++r)
+          first[r + 1] += first[r];
+        std::vector<uint32_t> pairs(first.back(), 0);
+        std::vector<uint32_t> fill(first.begin(), first.end() - 1);
+        for (const auto & t : tetrahedra)
+          for (int i = 0; i < 4; ++i)
+            if (t[i] >= lo && t[i] < hi)
+              for (int j = 0; j < 4; ++j)
+                if (t[j] < t[i])
+                  pairs[fill[t[i] - lo]++] = t[j];
+        rows[k].clear();
+        ends[k].clear();
+        for (std::size_t r = 0; r < hi - lo; ++r)
+        {
+          const auto b = pairs.begin() + first[r], e = pairs.begin() + first[r + 1];
+          std::sort(b, e);
+          rows[k].insert(rows[k].end(), b, std::unique(b, e));
+          ends[k].push_back(uint32_t(rows[k].size()));
+        }
+      });
+      for (std::size_t k = 0; k < together && batch + k < parts; ++k)
       {
-        const auto b = pairs.begin() + first[r], e = pairs.begin() + first[r + 1];
-        std::sort(b, e);
-        neighbour.insert(neighbour.end(), b, std::unique(b, e));
-        start[lo + r + 1] = uint32_t(neighbour.size());
+        const std::size_t lo = std::min(n, (batch + k) * rowsPerPart), offset = neighbour.size();
+        neighbour.insert(neighbour.end(), rows[k].begin(), rows[k].end());
+        for (std::size_t r = 0; r < ends[k].size(); ++r)
+          start[lo + r + 1] = uint32_t(offset + ends[k][r]);
+        std::vector<uint32_t>().swap(rows[k]);
       }
     }
   }
