@@ -76,7 +76,8 @@ public:
   void
   Remove(VertexId v, std::vector<CellId> & killed, std::vector<Cell> & created);
 
-  /** The finite cells incident to a vertex. */
+  /** The finite cells incident to a vertex, in no fixed order. Reads only: several threads may call it at
+   * once while nothing changes the tetrahedralization. */
   void
   IncidentCells(VertexId v, std::vector<Cell> & cells) const;
 

@@ -37,6 +37,9 @@ namespace
 constexpr uint64_t NoVoxel = ~uint64_t(0);
 constexpr uint32_t NoCell = Tetrahedralization::NoCell;
 constexpr uint32_t NumberOfCorners = 8; // vertex ids 0-7, never removed
+// Removal costs a task computes after each removal: a removal leaves some 13 to compute, of about 4 us
+// each (norm-256; grains of 2 and 8 measured no better).
+constexpr std::size_t DecimationGrain = 4;
 
 /** Max-heap entry: a key and the cell it belongs to. Entries of dead cells are skipped when they
  * surface (lazy deletion); a cell only changes on a full rescan, which rebuilds the heaps. Ties
@@ -237,8 +240,9 @@ struct RefinementEngine::Impl
 
   std::vector<Tetrahedralization::CellId> killed;
   std::vector<Tetrahedralization::Cell>   created;
-  std::vector<CellScan>                   scans;     // of the created cells
-  std::vector<std::array<double, 2>>      valueSums; // of the created cells, for ChooseValue
+  std::vector<CellScan>                   scans;      // of the created cells
+  std::vector<std::array<double, 2>>      valueSums;  // of the created cells, for ChooseValue
+  std::vector<VertexId>                   staleCosts; // UpdateRemovalCosts
 
   bool
   IsVertex(uint64_t voxel) const
@@ -757,7 +761,8 @@ struct RefinementEngine::Impl
   {
     static thread_local std::vector<Tetrahedralization::Cell> incident;
     mesh.IncidentCells(v, incident);
-    // Summed in a fixed order (CGAL lists incident cells in memory order), for reproducible keys.
+    // Summed in a fixed order (the incident cells come in the order of a walk that starts wherever CGAL
+    // last pointed v), for reproducible keys.
     static thread_local std::vector<std::pair<double, double>> terms;
     terms.clear();
     for (const auto & c : incident)
@@ -785,6 +790,28 @@ struct RefinementEngine::Impl
       removalCostValid[v] = 1;
     }
     return removalCost[v];
+  }
+
+  // Brings the cached removal costs of `vertices` (alive, distinct) up to date on several threads: a cost
+  // only reads the mesh and the cells' state and is stored at its own vertex, so the values are those
+  // of CachedRemovalCost() one by one.
+  void
+  UpdateRemovalCosts(const std::vector<VertexId> & vertices, std::size_t grain)
+  {
+    std::vector<VertexId> & stale = staleCosts;
+    stale.clear();
+    for (VertexId v : vertices)
+    {
+      if (!removalCostValid[v])
+      {
+        stale.push_back(v);
+      }
+    }
+    ParallelFor(stale.size(), grain, [&](std::size_t i) { removalCost[stale[i]] = RemovalCost(stale[i]); });
+    for (VertexId v : stale)
+    {
+      removalCostValid[v] = 1;
+    }
   }
 
   void
@@ -936,17 +963,24 @@ RefinementEngine::Refine(std::size_t numberOfPoints, const ProgressFunction & pr
 void
 RefinementEngine::Decimate(std::size_t count)
 {
-  Impl &                    d = *m_Impl;
-  const StageTimer          timer(d.timings.decimation);
-  std::vector<RemovalEntry> entries;
-  entries.reserve(d.mesh.NumberOfVertices());
-  // Costs are kept between rounds: only vertices whose incident cells changed are computed again.
+  Impl &                d = *m_Impl;
+  const StageTimer      timer(d.timings.decimation);
+  std::vector<VertexId> candidates;
+  candidates.reserve(d.mesh.NumberOfVertices());
   for (VertexId v = NumberOfCorners; v < d.mesh.NumberOfVertexIds(); ++v)
   {
     if (d.vertexAlive[v])
     {
-      entries.push_back(RemovalEntry{ d.CachedRemovalCost(v), v, ++d.stamp[v] });
+      candidates.push_back(v);
     }
+  }
+  // Costs are kept between rounds: only vertices whose incident cells changed are computed again.
+  d.UpdateRemovalCosts(candidates, 256);
+  std::vector<RemovalEntry> entries;
+  entries.reserve(candidates.size());
+  for (VertexId v : candidates)
+  {
+    entries.push_back(RemovalEntry{ d.CachedRemovalCost(v), v, ++d.stamp[v] });
   }
   std::priority_queue<RemovalEntry> heap(std::less<RemovalEntry>(), std::move(entries));
   std::vector<VertexId>             neighbours;
@@ -963,12 +997,16 @@ RefinementEngine::Decimate(std::size_t count)
     ++removed;
     std::sort(neighbours.begin(), neighbours.end());
     neighbours.erase(std::unique(neighbours.begin(), neighbours.end()), neighbours.end());
+    neighbours.erase(std::remove_if(neighbours.begin(),
+                                    neighbours.end(),
+                                    [&d](VertexId v) { return v < NumberOfCorners || !d.vertexAlive[v]; }),
+                     neighbours.end());
+    // The neighbours' new costs are about a third of the decimation's time: computed in parallel, then
+    // pushed in the order of their ids as before, so the heap pops the same vertices.
+    d.UpdateRemovalCosts(neighbours, DecimationGrain);
     for (VertexId v : neighbours)
     {
-      if (v >= NumberOfCorners && d.vertexAlive[v])
-      {
-        heap.push(RemovalEntry{ d.CachedRemovalCost(v), v, ++d.stamp[v] });
-      }
+      heap.push(RemovalEntry{ d.CachedRemovalCost(v), v, ++d.stamp[v] });
     }
   }
 }

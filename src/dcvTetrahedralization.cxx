@@ -23,7 +23,11 @@
 #include <CGAL/Triangulation_cell_base_with_info_3.h>
 #include <CGAL/Triangulation_vertex_base_with_info_3.h>
 
+#include <boost/container/small_vector.hpp>
+
 #include <algorithm>
+#include <array>
+#include <cstdint>
 #include <stdexcept>
 #include <string>
 
@@ -265,11 +269,64 @@ Tetrahedralization::Remove(VertexId id, std::vector<CellId> & killed, std::vecto
 void
 Tetrahedralization::IncidentCells(VertexId id, std::vector<Cell> & out) const
 {
-  Impl & d = *m_Impl;
+  const Impl & d = *m_Impl;
   out.clear();
-  d.scratch.clear();
-  d.dt.incident_cells(d.vertices.at(id), std::back_inserter(d.scratch));
-  for (const CellHandle & c : d.scratch)
+  const VertexHandle v = d.vertices.at(id);
+  if (v == VertexHandle())
+  {
+    throw std::logic_error("Tetrahedralization: no such vertex");
+  }
+  if (d.dt.dimension() < 3)
+  {
+    return; // no cell has an id yet
+  }
+  // Our own walk, not CGAL's incident_cells: that one marks the cells it visits in the cells themselves
+  // (Sequential_tag), so two threads could not list incident cells at once. This one only reads the
+  // triangulation. From v's cell, across the facets that contain v (all but the one opposite v), to
+  // every cell of v's star, infinite ones included (hull vertices: the star is connected through them).
+  // The cells seen are kept in a small hash table on the stack (a star has some 20 to 60 cells); a
+  // larger star goes on with a linear search of the list.
+  constexpr std::size_t                           slots = 256;
+  std::array<const void *, slots>                 seen{};
+  boost::container::small_vector<CellHandle, 128> star;
+  auto                                            firstVisit = [&seen, &star](const CellHandle & c) {
+    if (star.size() >= slots / 2)
+    {
+      return std::find(star.begin(), star.end(), c) == star.end();
+    }
+    const void *   key = &*c;
+    const uint64_t hash = uint64_t(reinterpret_cast<std::uintptr_t>(key)) * 0x9E3779B97F4A7C15ull; // Fibonacci
+    std::size_t    h = std::size_t(hash >> 56); // its top 8 bits: one of the 256 slots
+    for (; seen[h] != nullptr; h = (h + 1) % slots)
+    {
+      if (seen[h] == key)
+      {
+        return false;
+      }
+    }
+    seen[h] = key;
+    return true;
+  };
+  firstVisit(v->cell());
+  star.push_back(v->cell());
+  for (std::size_t i = 0; i < star.size(); ++i)
+  {
+    const CellHandle c = star[i];
+    const int        opposite = c->index(v);
+    for (int j = 0; j < 4; ++j)
+    {
+      if (j != opposite)
+      {
+        const CellHandle n = c->neighbor(j);
+        if (firstVisit(n))
+        {
+          __builtin_prefetch(&*n); // read when its turn comes: its cache miss overlaps the walk meanwhile
+          star.push_back(n);
+        }
+      }
+    }
+  }
+  for (const CellHandle & c : star)
   {
     if (c->info().id != NoCell)
     {

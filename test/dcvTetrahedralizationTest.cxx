@@ -20,6 +20,7 @@
 #include "dcvTetrahedralization.h"
 
 #include <set>
+#include <thread>
 
 namespace
 {
@@ -205,6 +206,120 @@ TEST(Tetrahedralization, CompactedCellIdsAreDenseAndKeepTheirOrder)
     EXPECT_GE(c.id, after.size());
   }
   EXPECT_TRUE(mesh.IsValid());
+}
+
+/** The finite cells incident to each vertex, by brute force over all finite cells (those CGAL's own
+ * incident_cells lists), as sorted lists of (id, vertices): a cell listed twice shows. */
+using Star = std::vector<std::pair<uint32_t, Tetrahedron>>;
+std::vector<Star>
+StarsOfAllCells(const Tetrahedralization & mesh)
+{
+  std::vector<Star> stars(mesh.NumberOfVertexIds());
+  for (const auto & c : mesh.FiniteCells())
+  {
+    for (auto v : c.vertices)
+    {
+      stars[v].emplace_back(c.id, c.vertices);
+    }
+  }
+  for (auto & s : stars)
+  {
+    std::sort(s.begin(), s.end());
+  }
+  return stars;
+}
+
+Star
+WalkedStar(const Tetrahedralization & mesh, uint32_t v)
+{
+  std::vector<Tetrahedralization::Cell> cells;
+  mesh.IncidentCells(v, cells);
+  Star s;
+  for (const auto & c : cells)
+  {
+    s.emplace_back(c.id, c.vertices);
+  }
+  std::sort(s.begin(), s.end());
+  return s;
+}
+
+TEST(Tetrahedralization, IncidentCellsWalkFindsTheWholeStar)
+{
+  // Random points (vertices on the hull's faces and edges among them: their stars go through infinite
+  // cells), and a centre on a sphere of 84 grid points (2 * 84 - 4 cells: more than the walk's hash table
+  // takes). Removals and insertions then recycle CGAL's cells, so walks start from varied cells.
+  const GridSize         grid{ 17, 17, 17 };
+  std::vector<GridPoint> points = test::RandomPoints(grid, 500, 13);
+  std::vector<GridPoint> sphere{ { 8, 8, 8 } };
+  for (int32_t z = 1; z < 16; ++z)
+  {
+    for (int32_t y = 1; y < 16; ++y)
+    {
+      for (int32_t x = 1; x < 16; ++x)
+      {
+        if ((x - 8) * (x - 8) + (y - 8) * (y - 8) + (z - 8) * (z - 8) == 50)
+        {
+          sphere.push_back({ x, y, z });
+        }
+      }
+    }
+  }
+  ASSERT_EQ(sphere.size(), 85u);
+  Tetrahedralization mesh;
+  mesh.InsertMany(test::Corners(grid));
+  mesh.InsertMany(sphere);
+  std::vector<uint32_t>                 killed;
+  std::vector<Tetrahedralization::Cell> created;
+  EXPECT_GT(WalkedStar(mesh, 8).size(), 128u); // the centre
+  EXPECT_EQ(WalkedStar(mesh, 8), StarsOfAllCells(mesh)[8]);
+  for (std::size_t i = 8; i < points.size(); ++i)
+  {
+    if (std::find(sphere.begin(), sphere.end(), points[i]) == sphere.end())
+    {
+      mesh.Insert(points[i], Tetrahedralization::NoCell, killed, created);
+    }
+  }
+  const uint32_t firstRandom = 8 + 85;
+  for (uint32_t v = firstRandom; v < mesh.NumberOfVertexIds(); v += 4)
+  {
+    mesh.Remove(v, killed, created);
+  }
+  ASSERT_TRUE(mesh.IsValid());
+  const std::vector<Star> reference = StarsOfAllCells(mesh);
+  std::vector<uint32_t>   alive;
+  for (uint32_t v = 0; v < mesh.NumberOfVertexIds(); ++v)
+  {
+    if (!reference[v].empty())
+    {
+      alive.push_back(v);
+    }
+  }
+  ASSERT_EQ(alive.size(), mesh.NumberOfVertices());
+  for (uint32_t v : alive)
+  {
+    ASSERT_EQ(WalkedStar(mesh, v), reference[v]) << "vertex " << v;
+  }
+  // It only reads: walks on several threads at once find the same.
+  std::vector<std::thread> threads;
+  std::vector<int>         wrong(4, 0);
+  for (std::size_t t = 0; t < wrong.size(); ++t)
+  {
+    threads.emplace_back([&, t] {
+      for (int pass = 0; pass < 20; ++pass)
+      {
+        for (uint32_t v : alive)
+        {
+          wrong[t] += WalkedStar(mesh, v) != reference[v] ? 1 : 0;
+        }
+      }
+    });
+  }
+  for (auto & t : threads)
+  {
+    t.join();
+  }
+  EXPECT_EQ(wrong, std::vector<int>(wrong.size(), 0));
+  EXPECT_THROW(mesh.IncidentCells(firstRandom, created), std::logic_error); // removed
 }
 
 TEST(Tetrahedralization, DuplicatePointsAreRefused)
