@@ -19,11 +19,12 @@ set(DelaunayCompression_ITK_IO_COMPONENTS ITKIONRRD ITKIONIFTI ITKIOMeta ITKIOGD
 find_package(ITK 5.2 REQUIRED COMPONENTS ${DelaunayCompression_ITK_COMPONENTS} ${DelaunayCompression_ITK_IO_COMPONENTS}
   ITKTestKernel)
 # GDCM is not linked into the programs nor registered at their start: they load it when they meet DICOM
-# (tools/common/dcvGDCM.h). The tests, which call it directly, link all of ITK_LIBRARIES.
+# (tools/common/dcvGDCM.h). The tests, which call it directly, link all of ITK_LIBRARIES; the programs
+# neither ITKIOGDCM nor ITKTestKernel, which links it (and which a linker without --as-needed keeps).
 list(REMOVE_ITEM ITK_ImageIO GDCM)
 include(${ITK_USE_FILE})
 set(DelaunayCompression_PROGRAM_LIBRARIES ${ITK_LIBRARIES})
-list(REMOVE_ITEM DelaunayCompression_PROGRAM_LIBRARIES ITKIOGDCM)
+list(REMOVE_ITEM DelaunayCompression_PROGRAM_LIBRARIES ITKIOGDCM ITKTestKernel)
 
 # Installed programs find the module's library relative to themselves, whatever the prefix.
 file(RELATIVE_PATH _dcv_bin_to_lib "/${CMAKE_INSTALL_BINDIR}" "/${CMAKE_INSTALL_LIBDIR}")

@@ -18,7 +18,9 @@
 #include "dcvGDCM.h"
 #include "dcvTools.h"
 
+#include <filesystem>
 #include <mutex>
+#include <string>
 
 #include <dlfcn.h>
 
@@ -33,8 +35,19 @@ GDCM()
   const std::lock_guard        lock(mutex);
   if (!functions)
   {
-    // Found as the program's other libraries are (its RUNPATH: the build tree, or ../lib installed).
-    void * library = dlopen(DCV_GDCM_LIBRARY, RTLD_NOW | RTLD_LOCAL);
+    // Beside the module's library, in the build tree as installed. Found from where that library is, not
+    // through the program's RUNPATH: a dlopen called through a wrapper (AddressSanitizer's) searches the
+    // wrapper's RUNPATH instead. Else wherever the dynamic loader finds it.
+    std::string path = DCV_GDCM_LIBRARY;
+    Dl_info     module;
+    if (dladdr(reinterpret_cast<void *>(&dcv::PSNR), &module) && module.dli_fname)
+    {
+      const std::string beside =
+        (std::filesystem::path(module.dli_fname).parent_path() / DCV_GDCM_LIBRARY).string();
+      if (std::filesystem::exists(beside))
+        path = beside;
+    }
+    void * library = dlopen(path.c_str(), RTLD_NOW | RTLD_LOCAL);
     const auto get = library ? reinterpret_cast<const GDCMFunctions * (*)()>(dlsym(library, "dcvGDCMFunctions"))
                              : nullptr;
     if (!get)
