@@ -59,7 +59,7 @@ struct Adjacency
     for (std::size_t batch = 0; batch < parts; batch += together)
     {
       ParallelFor(std::min(together, parts - batch), 1, [&](std::size_t k) {
-        const std::size_t lo = std::min(n, (batch + k) * rowsPerPart), hi = std::min(n, lo + rowsPerPart);
+        const std::size_t     lo = std::min(n, (batch + k) * rowsPerPart), hi = std::min(n, lo + rowsPerPart);
         std::vector<uint32_t> first(hi - lo + 1, 0);
         for (const auto & t : tetrahedra)
           for (int i = 0; i < 4; ++i)

@@ -128,7 +128,7 @@ IsDicomInput(const std::string & path)
   return GDCM().newImageIO()->CanReadFile(path.c_str());
 }
 
-std::vector<std::pair<std::string, std::vector<std::string>>>
+DicomSeriesList
 ListDicomSeries(const std::string & directory)
 {
   const auto & gdcm = GDCM();

@@ -23,6 +23,7 @@
 // size and orientation) or, when asked, the resampling of a tilted or unevenly spaced series onto a
 // grid, and the attributes a derived series must carry, as .dcv metadata.
 #include "dcvFileFormat.h"
+#include "dcvGDCM.h"
 
 #include "itkImage.h"
 
@@ -60,7 +61,7 @@ FindDicomSeries(const std::string & path, const std::string & uid, std::size_t &
 
 /** The DICOM series of one directory as GDCM groups them (by Series Instance UID alone: size and
  * geometry are checked later): (UID, files) pairs. Failure naming the directory when GDCM cannot. */
-std::vector<std::pair<std::string, std::vector<std::string>>>
+DicomSeriesList
 ListDicomSeries(const std::string & directory);
 
 /** The pixel type of the series after rescale (int16 for CT in Hounsfield units). */

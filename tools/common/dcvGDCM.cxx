@@ -42,14 +42,13 @@ GDCM()
     Dl_info     module;
     if (dladdr(reinterpret_cast<void *>(&dcv::PSNR), &module) && module.dli_fname)
     {
-      const std::string beside =
-        (std::filesystem::path(module.dli_fname).parent_path() / DCV_GDCM_LIBRARY).string();
+      const std::string beside = (std::filesystem::path(module.dli_fname).parent_path() / DCV_GDCM_LIBRARY).string();
       if (std::filesystem::exists(beside))
         path = beside;
     }
-    void * library = dlopen(path.c_str(), RTLD_NOW | RTLD_LOCAL);
-    const auto get = library ? reinterpret_cast<const GDCMFunctions * (*)()>(dlsym(library, "dcvGDCMFunctions"))
-                             : nullptr;
+    void *     library = dlopen(path.c_str(), RTLD_NOW | RTLD_LOCAL);
+    const auto get =
+      library ? reinterpret_cast<const GDCMFunctions * (*)()>(dlsym(library, "dcvGDCMFunctions")) : nullptr;
     if (!get)
     {
       const char * error = dlerror();

@@ -133,8 +133,9 @@ ListDirectory(const fs::path & tree, const fs::path & directory, const fs::path 
   // GDCM's series scan is run only where a file is DICOM: it warns on a directory without any.
   const bool hasDicom = !others.empty() && [&] {
     const auto gdcm = GDCM().newImageIO();
-    return std::any_of(others.begin(), others.end(),
-                       [&](const std::string & name) { return gdcm->CanReadFile((directory / name).string().c_str()); });
+    return std::any_of(others.begin(), others.end(), [&](const std::string & name) {
+      return gdcm->CanReadFile((directory / name).string().c_str());
+    });
   }();
   if (hasDicom)
   {
