@@ -113,9 +113,15 @@ struct Approximation
 /** Adds the residual layer to a voxel the spline gave: the one rule of every decoder. */
 template <typename T>
 inline T
+AddResidual(T splineVoxel, double step, int32_t sample)
+{
+  return ConvertValue<T>(double(splineVoxel) + step * double(sample));
+}
+template <typename T>
+inline T
 AddResidual(T splineVoxel, const Residual & r, uint64_t voxel)
 {
-  return ConvertValue<T>(double(splineVoxel) + r.step * double(r.samples[voxel]));
+  return AddResidual(splineVoxel, r.step, r.samples[voxel]);
 }
 
 /** The Delaunay tetrahedralization of grid points (CGAL, exact predicates, symbolic perturbation),
@@ -165,21 +171,19 @@ ForEachSlab(const GridSize & grid, unsigned int threads, F && f)
   });
 }
 
-/** AddResidual for the voxels [first, end). For integers of 16 bits or less and a whole step below 2^20
- * (integer layers always have one) the sum is a whole number, exact in double, so converting it is
- * clamping it: the same voxels in a loop the compiler vectorizes. */
+/** AddResidual for the n voxels of `out` and their samples. For integers of 16 bits or less and a whole
+ * step below 2^20 (integer layers always have one) the sum is a whole number, exact in double, so
+ * converting it is clamping it: the same voxels in a loop the compiler vectorizes. */
 template <typename T>
 void
-AddResidualToVoxels(const Residual & r, T * out, uint64_t first, uint64_t end)
+AddResidualToRow(double step, const int32_t * samples, T * out, uint64_t n)
 {
   if constexpr (std::is_integral<T>::value && sizeof(T) <= 2)
   {
-    if (r.step == std::floor(r.step) && std::abs(r.step) < double(1 << 20))
+    if (step == std::floor(step) && std::abs(step) < double(1 << 20))
     {
       const double lowest = double(std::numeric_limits<T>::lowest()), highest = double(std::numeric_limits<T>::max());
-      const double step = r.step;
-      const int32_t * samples = r.samples.data();
-      for (uint64_t i = first; i < end; ++i)
+      for (uint64_t i = 0; i < n; ++i)
       {
         const double v = double(out[i]) + step * double(samples[i]);
         out[i] = T(int32_t(v < lowest ? lowest : (v > highest ? highest : v)));
@@ -187,8 +191,16 @@ AddResidualToVoxels(const Residual & r, T * out, uint64_t first, uint64_t end)
       return;
     }
   }
-  for (uint64_t i = first; i < end; ++i)
-    out[i] = AddResidual(out[i], r, i);
+  for (uint64_t i = 0; i < n; ++i)
+    out[i] = AddResidual(out[i], step, samples[i]);
+}
+
+/** AddResidual for the voxels [first, end). */
+template <typename T>
+void
+AddResidualToVoxels(const Residual & r, T * out, uint64_t first, uint64_t end)
+{
+  AddResidualToRow(r.step, r.samples.data() + first, out + first, end - first);
 }
 
 template <typename T>

@@ -21,6 +21,7 @@
 #include "DelaunayCompressionExport.h"
 #include "dcvApproximation.h"
 #include "dcvFileFormat.h"
+#include "dcvResidualLayer.h"
 
 #include <cstdint>
 #include <string>
@@ -71,6 +72,27 @@ DecodeMesh(const CompressedFile & file, const DecodeLimits & limits = DecodeLimi
  * allocated, when the mesh and the volume would need more memory than `limits` allow. */
 DelaunayCompression_EXPORT Approximation
 Decode(const CompressedFile & file, const DecodeLimits & limits = DecodeLimits());
+
+/** Decodes a parsed file into `out` (laid out as the grid, of the file's pixel type T): the voxels of
+ * Rasterize(Decode(file)), with the residual layer added to them row by row as JPEG 2000 decodes it,
+ * not kept as a volume of int32 first (norm-256 at 0.03125 bpv: 17,000 page faults of 45,000 less).
+ * What `dcv decompress` and the ImageIO do; Decode() is for callers that rasterize parts (RasterizeBox). */
+template <typename T>
+void
+DecodeVolume(const CompressedFile & file, T * out, const DecodeLimits & limits = DecodeLimits(),
+             unsigned int threads = 0)
+{
+  const FileHeader & h = file.header;
+  CheckDecodingMemory(h, file.name, DecodeOutput::Volume, limits);
+  Rasterize(DecodeMesh(file, limits), out, threads);
+  if (h.residualStep > 0.0)
+  {
+    DecodeResidualRows(
+      h.residualLayer, h.size, file.name, h.residualLevels, [&](int32_t y, int32_t z, const int32_t * row) {
+        detail::AddResidualToRow(h.residualStep, row, out + h.size.Offset(0, y, z), uint64_t(h.size.x));
+      });
+  }
+}
 
 } // namespace dcv
 

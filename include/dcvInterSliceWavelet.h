@@ -72,6 +72,21 @@ InverseInterSlice(std::vector<int32_t> & samples, const GridSize & grid, int32_t
 DelaunayCompression_EXPORT void
 InverseInterSlice(const std::function<const int32_t *(int32_t y, int32_t z)> & source, int32_t * out,
                   const GridSize & grid, int32_t levels);
+/** The same, giving each result row to `sink(y, z, row)` (x samples, valid during the call) instead of
+ * writing a volume: a caller that only reads the layer once (the encoder's error of a trial) needs no
+ * volume of it. `sink` is called from several threads, each row once. */
+DelaunayCompression_EXPORT void
+InverseInterSlice(const std::function<const int32_t *(int32_t y, int32_t z)> &           source,
+                  const std::function<void(int32_t y, int32_t z, const int32_t * row)> & sink, const GridSize & grid,
+                  int32_t levels);
+/** ForwardInterSlice row by row: `source(y, z, row)` writes slice z's row y (x samples), and the
+ * transformed row goes to `sink(y, z, row)`: the encoder computes the samples straight into JPEG 2000's
+ * image, without a volume of them laid out as the grid. Both are called from several threads, each row
+ * once; all the rows of an image row y are read before any of them is given to `sink`. */
+DelaunayCompression_EXPORT void
+ForwardInterSlice(const std::function<void(int32_t y, int32_t z, int32_t * row)> &       source,
+                  const std::function<void(int32_t y, int32_t z, const int32_t * row)> & sink, const GridSize & grid,
+                  int32_t levels);
 
 } // namespace dcv
 

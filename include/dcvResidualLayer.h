@@ -75,6 +75,13 @@ DelaunayCompression_EXPORT ResidualSamples
 DecodeResidualLayer(const std::vector<uint8_t> & codestream, const GridSize & grid, const std::string & name,
                     int32_t levels = 0);
 
+/** DecodeResidualLayer row by row, without a volume of the samples: each row (slice z's row y, x
+ * samples, valid during the call) goes to `sink(y, z, row)`, from several threads, each row once. A
+ * decoder adds them to its voxels as they come; the encoder sums a trial's error. */
+DelaunayCompression_EXPORT void
+DecodeResidualRows(const std::vector<uint8_t> & codestream, const GridSize & grid, const std::string & name,
+                   int32_t levels, const std::function<void(int32_t y, int32_t z, const int32_t * row)> & sink);
+
 /** Bytes of the fields a compact layer stores instead of its codestream's SOC, SIZ, COD, SOT, SOD and EOC. */
 constexpr std::size_t CompactLayerFieldBytes = 4;
 
@@ -169,8 +176,8 @@ public:
   Best() &&;
 
 private:
-  /** The residual in steps, laid out as the grid, computed on each call (not kept between codings). */
-  std::function<std::vector<int32_t>()>
+  /** The residual in steps, row by row (slice z's row y), computed on each call: no volume of it is kept. */
+  std::function<void(int32_t y, int32_t z, int32_t * row)>
   Source() const;
   double
   Measure(std::vector<uint8_t> && codestream, const ResidualCoding & coding, double target);

@@ -396,10 +396,7 @@ ChooseLayers(const EncoderInput & input, std::size_t fileBytes, bool pointsAband
                   std::vector<uint8_t> && splinePayload,
                   double                  step,
                   const FileHeader &      h) {
-    if (!(search.BestError() < bestError))
-      return;
     ResidualChoice c = std::move(search).Best();
-    bestError = c.squaredError;
     r.header.constantSpline = h.constantSpline;
     r.header.scale = h.scale;
     r.header.quantizationOrigin = h.quantizationOrigin;
@@ -417,15 +414,20 @@ ChooseLayers(const EncoderInput & input, std::size_t fileBytes, bool pointsAband
                               : points.get();
   if (leader && leader->BestError() < bestError && leader->Unused() > slack)
     leader->Fill(slack, 2);
-  if (points)
+  // The points alone, the points with their layer, or the corners' layer: the first of the closest.
+  const double withLayer = points ? points->BestError() : std::numeric_limits<double>::infinity();
+  const double cornersError = corners.search ? corners.search->BestError() : std::numeric_limits<double>::infinity();
+  if (cornersError < std::min(bestError, withLayer))
+  {
+    keep(*corners.search, std::move(corners.spline), {}, corners.step, corners.header);
+  }
+  else if (withLayer < bestError)
   {
     Approximation        spline = r.approximation;
     std::vector<uint8_t> splinePayload = payload;
     const FileHeader     h = r.header;
     keep(*points, std::move(spline), std::move(splinePayload), q, h);
   }
-  if (corners.search)
-    keep(*corners.search, std::move(corners.spline), {}, corners.step, corners.header);
 }
 
 /** Approximate() and, with `coded`, the payload as rate control measured it (or coded once here). */

@@ -165,34 +165,6 @@ CheckLevels(const std::vector<int32_t> & samples, const GridSize & grid, int32_t
   CheckLevels(grid, levels);
 }
 
-/** Runs `f(rows, scratch)` on each image row y of the volume gathered as z rows of x samples (int64, so
- * that no level overflows), then scatters the rows back, clamped to int32. Rows are independent. For the
- * forward transform (the inverse has its own, InverseInterSlice). */
-template <typename F>
-void
-ForEachRow(std::vector<int32_t> & samples, const GridSize & grid, F && f)
-{
-  const int64_t width = grid.x;
-  ParallelFor(std::size_t(grid.y), 1, [&](std::size_t y) {
-    // One pair of buffers a thread, kept between rows: allocating them per row costs more in page
-    // faults than the lifting itself.
-    thread_local std::vector<int64_t> rows, scratch;
-    rows.resize(std::size_t(width * grid.z));
-    scratch.resize(rows.size());
-    for (int32_t z = 0; z < grid.z; ++z)
-      std::copy_n(samples.data() + grid.Offset(0, int32_t(y), z), width, rows.data() + int64_t(z) * width);
-    f(rows.data(), scratch.data());
-    constexpr int64_t lowest = std::numeric_limits<int32_t>::min() + 1, highest = std::numeric_limits<int32_t>::max();
-    for (int32_t z = 0; z < grid.z; ++z)
-    {
-      const int64_t * row = rows.data() + int64_t(z) * width;
-      int32_t *       out = samples.data() + grid.Offset(0, int32_t(y), z);
-      for (int64_t c = 0; c < width; ++c)
-        out[c] = int32_t(std::clamp(row[c], lowest, highest));
-    }
-  });
-}
-
 /** Decoded samples at most this large in magnitude take the synthesis in int32: each level at most
  * multiplies the magnitudes by 2.5 (plus 3), so after MaximumInterSliceLevels they and the sums of two of
  * them stay below 2^30. */
@@ -234,15 +206,47 @@ ForwardInterSlice(std::vector<int32_t> & samples, const GridSize & grid, int32_t
   CheckLevels(samples, grid, levels);
   if (levels == 0)
     return;
-  ForEachRow(samples, grid, [&](int64_t * rows, int64_t * scratch) {
-    for (int32_t l = 0; l < levels; ++l)
-      Analyze(rows, scratch, LowLength(grid.z, l), grid.x);
+  // In place: each image row's slices are all read before any is written.
+  ForwardInterSlice(
+    [&](int32_t y, int32_t z, int32_t * row) { std::copy_n(samples.data() + grid.Offset(0, y, z), grid.x, row); },
+    [&](int32_t y, int32_t z, const int32_t * row) { std::copy_n(row, grid.x, samples.data() + grid.Offset(0, y, z)); },
+    grid,
+    levels);
+}
+
+void
+ForwardInterSlice(const std::function<void(int32_t y, int32_t z, int32_t * row)> &       source,
+                  const std::function<void(int32_t y, int32_t z, const int32_t * row)> & sink, const GridSize & grid,
+                  int32_t levels)
+{
+  CheckLevels(grid, levels);
+  const int64_t     width = grid.x;
+  const std::size_t n = std::size_t(width * grid.z);
+  ParallelFor(std::size_t(grid.y), 1, [&](std::size_t row) {
+    const int32_t y = int32_t(row);
+    // Buffers a thread, kept between rows: allocating them per row costs more in page faults than the
+    // lifting itself. The lifting runs in int64, so that no level overflows.
+    thread_local std::vector<int32_t> narrow;
+    thread_local std::vector<int64_t> rows, scratch;
+    narrow.resize(n);
     for (int32_t z = 0; z < grid.z; ++z)
+      source(y, z, narrow.data() + int64_t(z) * width);
+    if (levels > 0)
     {
-      const int64_t w = SliceWeight(grid.z, levels, z);
-      for (int64_t c = 0; c < grid.x; ++c)
-        rows[z * int64_t(grid.x) + c] = Weigh(rows[z * int64_t(grid.x) + c], w);
+      rows.assign(narrow.begin(), narrow.end());
+      scratch.resize(n);
+      for (int32_t l = 0; l < levels; ++l)
+        Analyze(rows.data(), scratch.data(), LowLength(grid.z, l), width);
+      constexpr int64_t lowest = std::numeric_limits<int32_t>::min() + 1, highest = std::numeric_limits<int32_t>::max();
+      for (int32_t z = 0; z < grid.z; ++z)
+      {
+        const int64_t w = SliceWeight(grid.z, levels, z);
+        for (int64_t c = z * width; c < (z + 1) * width; ++c)
+          narrow[std::size_t(c)] = int32_t(std::clamp(Weigh(rows[std::size_t(c)], w), lowest, highest));
+      }
     }
+    for (int32_t z = 0; z < grid.z; ++z)
+      sink(y, z, narrow.data() + int64_t(z) * width);
   });
 }
 
@@ -257,6 +261,18 @@ InverseInterSlice(std::vector<int32_t> & samples, const GridSize & grid, int32_t
 void
 InverseInterSlice(const std::function<const int32_t *(int32_t y, int32_t z)> & source, int32_t * out,
                   const GridSize & grid, int32_t levels)
+{
+  InverseInterSlice(
+    source,
+    [&](int32_t y, int32_t z, const int32_t * row) { std::copy_n(row, grid.x, out + grid.Offset(0, y, z)); },
+    grid,
+    levels);
+}
+
+void
+InverseInterSlice(const std::function<const int32_t *(int32_t y, int32_t z)> &           source,
+                  const std::function<void(int32_t y, int32_t z, const int32_t * row)> & sink, const GridSize & grid,
+                  int32_t levels)
 {
   CheckLevels(grid, levels);
   std::vector<int64_t> weight(std::size_t(grid.z), HighBandWeight[0]);
@@ -303,7 +319,7 @@ InverseInterSlice(const std::function<const int32_t *(int32_t y, int32_t z)> & s
         narrow[i] = int32_t(std::clamp(wide[i], least, most));
     }
     for (int32_t z = 0; z < grid.z; ++z)
-      std::copy_n(narrow.data() + int64_t(z) * width, width, out + grid.Offset(0, y, z));
+      sink(y, z, narrow.data() + int64_t(z) * width);
   });
 }
 

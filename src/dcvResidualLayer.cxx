@@ -184,12 +184,48 @@ StripComments(std::vector<uint8_t> & codestream)
   }
 }
 
-/** One encode at a target size of `components` planes of width x height samples, which `write` puts
- * into the planes of OpenJPEG's image; the codestream (empty when OpenJPEG fails). A fresh image each
- * time: OpenJPEG's encoder transforms a one-tile image's samples in place. */
+/** Slice z's row y of a layer's samples (x of them), written to `row`. */
+using RowSource = std::function<void(int32_t y, int32_t z, int32_t * row)>;
+
+/** The sample planes of an OpenJPEG image, from OpenJPEG's allocator: an image takes them, and its
+ * encoder frees them (it takes a one-tile image's samples and transforms them in place). */
+struct Planes
+{
+  std::vector<int32_t *> data;
+
+  Planes() = default;
+  Planes(std::size_t count, std::size_t samples)
+  {
+    data.reserve(count);
+    for (std::size_t c = 0; c < count; ++c)
+    {
+      // Not zeroed: every sample is written before the encode.
+      data.push_back(static_cast<int32_t *>(opj_image_data_alloc(samples * sizeof(int32_t))));
+      if (data.back() == nullptr)
+        throw std::bad_alloc();
+    }
+  }
+  Planes(Planes && o) noexcept
+    : data(std::exchange(o.data, {}))
+  {}
+  Planes &
+  operator=(Planes && o) noexcept
+  {
+    std::swap(data, o.data);
+    return *this;
+  }
+  ~Planes()
+  {
+    for (int32_t * p : data)
+      opj_image_data_free(p);
+  }
+};
+
+/** One encode at a target size of the planes (`components` of width x height samples); the codestream
+ * (empty when OpenJPEG fails). The planes go to OpenJPEG, which transforms them in place and frees them. */
 std::vector<uint8_t>
-EncodeOnce(const std::function<void(const std::function<int32_t *(int)> &)> & write, int components, int64_t width,
-           int64_t height, int precision, int resolutions, double ratio, Wavelet wavelet)
+EncodeOnce(Planes && planes, int components, int64_t width, int64_t height, int precision, int resolutions,
+           double ratio, Wavelet wavelet)
 {
   opj_image_cmptparm_t component{};
   component.dx = component.dy = 1;
@@ -198,13 +234,14 @@ EncodeOnce(const std::function<void(const std::function<int32_t *(int)> &)> & wr
   component.prec = OPJ_UINT32(precision);
   component.sgnd = 1;
   std::vector<opj_image_cmptparm_t> parameters(std::size_t(components), component);
-  Image image(opj_image_create(OPJ_UINT32(components), parameters.data(), OPJ_CLRSPC_UNKNOWN));
-  if (!image)
+  Image image(opj_image_tile_create(OPJ_UINT32(components), parameters.data(), OPJ_CLRSPC_UNKNOWN));
+  if (!image || planes.data.size() != std::size_t(components))
     throw std::bad_alloc();
   image->x0 = image->y0 = 0;
   image->x1 = OPJ_UINT32(width);
   image->y1 = OPJ_UINT32(height);
-  write([&](int c) { return image->comps[c].data; });
+  for (int c = 0; c < components; ++c)
+    image->comps[c].data = std::exchange(planes.data[std::size_t(c)], nullptr); // the image's now
 
   opj_cparameters_t p;
   opj_set_default_encoder_parameters(&p);
@@ -265,85 +302,75 @@ MosaicColumns(const GridSize & grid)
 namespace
 {
 /** A coding's JPEG 2000 image: its shape, prepared once, then encoded at as many targets as asked. Its
- * samples are computed again for each encode after the first, not kept beside OpenJPEG's copy of them (a
- * volume of int32 less at the residual layers' peak: 31 MB on the 5 mm CT series). */
+ * samples are computed again for each encode after the first, straight into the planes OpenJPEG takes,
+ * never kept as a volume laid out as the grid (page faults of a fresh volume cost more than computing
+ * the samples again). */
 struct LayerImage
 {
-  std::function<std::vector<int32_t>()> source; // the samples, laid out as the grid
-  GridSize                              grid;
-  Arrangement                           arrangement{ Arrangement::Mosaic };
-  int32_t                               levels{ 0 };
-  int32_t                               columns{ 1 }; // of the mosaic
-  int32_t                               fill{ 0 };    // the mosaic's empty tiles
-  std::vector<int32_t>                  pending;      // the transformed samples, until the first encode
-  int                                   components{ 1 };
-  int64_t                               width{ 0 }, height{ 0 };
-  int                                   precision{ 2 };
-  int                                   resolutions{ 1 };
-  double raw{ 0.0 }; // bytes of the samples at that precision: what OpenJPEG's ratio refers to
+  RowSource   source; // the samples
+  GridSize    grid;
+  Arrangement arrangement{ Arrangement::Mosaic };
+  int32_t     levels{ 0 };
+  int32_t     columns{ 1 }; // of the mosaic
+  int32_t     fill{ 0 };    // the mosaic's empty tiles
+  Planes      pending;      // the first encode's planes, written by PrepareImage
+  int         components{ 1 };
+  int64_t     width{ 0 }, height{ 0 };
+  int         precision{ 2 };
+  int         resolutions{ 1 };
+  double      raw{ 0.0 }; // bytes of the samples at that precision: what OpenJPEG's ratio refers to
 
-  std::vector<int32_t>
-  Transformed()
+  /** Where slice (or mosaic tile) z's row y is in the planes. */
+  int32_t *
+  Row(Planes & planes, int32_t y, int32_t z) const
   {
-    if (!pending.empty())
-      return std::exchange(pending, {});
-    std::vector<int32_t> samples = source();
-    if (levels > 0)
-      ForwardInterSlice(samples, grid, levels);
-    return samples;
+    if (arrangement == Arrangement::Components)
+      return planes.data[std::size_t(z)] + int64_t(y) * grid.x;
+    const int64_t x0 = int64_t(z % columns) * grid.x, y0 = int64_t(z / columns) * grid.y;
+    return planes.data[0] + (y0 + y) * width + x0;
   }
 
-  /** Writes the planes (one per slice, or the mosaic) where `plane(c)` says. */
-  void
-  Write(const std::function<int32_t *(int)> & plane)
+  /** New planes holding the transformed samples (the mosaic's empty tiles not written). */
+  Planes
+  Transformed() const
   {
-    const std::vector<int32_t> samples = Transformed();
-    const uint64_t             slice = uint64_t(grid.x) * uint64_t(grid.y);
+    Planes planes(std::size_t(components), std::size_t(width * height));
+    ForwardInterSlice(
+      source,
+      [&](int32_t y, int32_t z, const int32_t * row) { std::copy_n(row, grid.x, Row(planes, y, z)); },
+      grid,
+      levels);
+    return planes;
+  }
+
+  void
+  FillEmptyTiles(Planes & planes) const
+  {
     if (arrangement == Arrangement::Components)
-    {
-      for (int32_t z = 0; z < grid.z; ++z)
-        std::copy_n(samples.data() + z * slice, slice, plane(z));
       return;
-    }
-    int32_t * mosaic = plane(0);
-    std::fill_n(mosaic, width * height, fill);
-    for (int32_t z = 0; z < grid.z; ++z)
-    {
-      const int64_t x0 = int64_t(z % columns) * grid.x, y0 = int64_t(z / columns) * grid.y;
+    const int32_t tiles = columns * int32_t(height / grid.y);
+    for (int32_t z = grid.z; z < tiles; ++z)
       for (int32_t y = 0; y < grid.y; ++y)
-        std::copy_n(samples.data() + grid.Offset(0, y, z), grid.x, mosaic + (y0 + y) * width + x0);
-    }
+        std::fill_n(Row(planes, y, z), grid.x, fill);
+  }
+
+  /** The planes of the next encode. */
+  Planes
+  Take()
+  {
+    if (!pending.data.empty())
+      return std::move(pending);
+    Planes planes = Transformed();
+    FillEmptyTiles(planes);
+    return planes;
   }
 };
 
-/** Prepares the samples `source` gives (laid out as the grid) as a JPEG 2000 image; false when they
- * cannot be one (more slices than MaximumComponents as components, a mosaic too wide). */
+/** Prepares the samples `source` gives as a JPEG 2000 image; false when they cannot be one (more slices
+ * than MaximumComponents as components, a mosaic too wide). */
 bool
-PrepareImage(std::function<std::vector<int32_t>()> source, const GridSize & grid, Arrangement arrangement,
-             int32_t levels, LayerImage & image)
+PrepareImage(RowSource source, const GridSize & grid, Arrangement arrangement, int32_t levels, LayerImage & image)
 {
-  std::vector<int32_t> samples = source();
-  if (samples.size() != grid.NumberOfVoxels())
-    throw std::invalid_argument("EncodeResidualLayer: one sample per voxel");
-  for (int32_t s : samples)
-  {
-    if (s <= -32768 || s >= 32768)
-      throw std::invalid_argument("EncodeResidualLayer: samples must be within +-32767");
-  }
-  if (levels > 0)
-    ForwardInterSlice(samples, grid, levels);
-  int32_t lowest = 0, highest = 0;
-  for (int32_t s : samples)
-  {
-    lowest = std::min(lowest, s);
-    highest = std::max(highest, s);
-  }
-  // The fewest bits that hold the samples (two's complement): more bit planes measured worse at the
-  // same size.
-  image.precision = 2;
-  while (lowest < -(1 << (image.precision - 1)) || highest > (1 << (image.precision - 1)) - 1)
-    ++image.precision;
-
   image.source = std::move(source);
   image.grid = grid;
   image.arrangement = arrangement;
@@ -355,7 +382,7 @@ PrepareImage(std::function<std::vector<int32_t>()> source, const GridSize & grid
   {
     if (grid.z > MaximumComponents)
       return false;
-    image.components = grid.z; // the grid's layout is already one plane per slice
+    image.components = grid.z;
   }
   else
   {
@@ -365,14 +392,34 @@ PrepareImage(std::function<std::vector<int32_t>()> source, const GridSize & grid
     image.height = int64_t(rows) * grid.y;
     if (image.width > 0x7fffffff || image.height > 0x7fffffff)
       return false;
+  }
+  Planes  planes = image.Transformed();
+  int32_t lowest = 0, highest = 0;
+  for (int32_t z = 0; z < grid.z; ++z)
+    for (int32_t y = 0; y < grid.y; ++y)
+    {
+      const auto range = std::minmax_element(image.Row(planes, y, z), image.Row(planes, y, z) + grid.x);
+      lowest = std::min(lowest, *range.first);
+      highest = std::max(highest, *range.second);
+    }
+  // The fewest bits that hold the samples (two's complement): more bit planes measured worse at the
+  // same size.
+  image.precision = 2;
+  while (lowest < -(1 << (image.precision - 1)) || highest > (1 << (image.precision - 1)) - 1)
+    ++image.precision;
+  if (arrangement == Arrangement::Mosaic)
+  {
     // Empty tiles of the last row hold the most frequent sample (air in a CT): no edge against the
     // background of the slices beside them (measured: +0.15 dB on ct-avm-4mm over a fill with 0).
-    std::vector<uint32_t> histogram(std::size_t(highest - lowest) + 1, 0);
-    for (int32_t s : samples)
-      ++histogram[std::size_t(s - lowest)];
+    std::vector<uint32_t> histogram(std::size_t(int64_t(highest) - lowest) + 1, 0);
+    for (int32_t z = 0; z < grid.z; ++z)
+      for (int32_t y = 0; y < grid.y; ++y)
+        for (const int32_t *s = image.Row(planes, y, z), *end = s + grid.x; s < end; ++s)
+          ++histogram[std::size_t(*s - lowest)];
     image.fill = int32_t(std::max_element(histogram.begin(), histogram.end()) - histogram.begin()) + lowest;
+    image.FillEmptyTiles(planes);
   }
-  image.pending = std::move(samples);
+  image.pending = std::move(planes);
   // Every resolution level needs a sample, as OpenJPEG asks; six levels otherwise.
   image.resolutions = std::max(
     1, std::min(6, int(std::floor(std::log2(double(std::max<int64_t>(1, std::min(image.width, image.height)))))) + 1));
@@ -384,7 +431,7 @@ PrepareImage(std::function<std::vector<int32_t>()> source, const GridSize & grid
 std::vector<uint8_t>
 EncodeAt(LayerImage & image, double target, Wavelet wavelet)
 {
-  return EncodeOnce([&](const std::function<int32_t *(int)> & plane) { image.Write(plane); },
+  return EncodeOnce(image.Take(),
                     image.components,
                     image.width,
                     image.height,
@@ -435,16 +482,26 @@ std::vector<uint8_t>
 EncodeResidualLayer(const std::vector<int32_t> & input, const GridSize & grid, std::size_t maximumBytes,
                     Wavelet wavelet, Arrangement arrangement, int32_t levels)
 {
+  if (input.size() != grid.NumberOfVoxels())
+    throw std::invalid_argument("EncodeResidualLayer: one sample per voxel");
+  for (int32_t s : input)
+  {
+    if (s <= -32768 || s >= 32768)
+      throw std::invalid_argument("EncodeResidualLayer: samples must be within +-32767");
+  }
   LayerImage image;
-  if (!PrepareImage([&input] { return input; }, grid, arrangement, levels, image))
+  const auto source = [&](int32_t y, int32_t z, int32_t * row) {
+    std::copy_n(input.data() + grid.Offset(0, y, z), grid.x, row);
+  };
+  if (!PrepareImage(source, grid, arrangement, levels, image))
     return {};
   double target = 0.0;
   return EncodeWithin(image, maximumBytes, wavelet, target);
 }
 
-ResidualSamples
-DecodeResidualLayer(const std::vector<uint8_t> & codestream, const GridSize & grid, const std::string & name,
-                    int32_t levels)
+void
+DecodeResidualRows(const std::vector<uint8_t> & codestream, const GridSize & grid, const std::string & name,
+                   int32_t levels, const std::function<void(int32_t y, int32_t z, const int32_t * row)> & sink)
 {
   if (levels < 0 || levels > InterSliceLevels(grid.z))
     throw FormatError(name + ": invalid inter-slice wavelet levels " + std::to_string(levels));
@@ -494,15 +551,24 @@ DecodeResidualLayer(const std::vector<uint8_t> & codestream, const GridSize & gr
   }
   // The inverse wavelet reads each slice's rows where OpenJPEG put them (in the mosaic, or the slice's
   // component): no copy of the volume laid out as the grid in between.
-  ResidualSamples samples(grid.NumberOfVoxels()); // each written once below
   InverseInterSlice(
     [&](int32_t y, int32_t z) -> const int32_t * {
       const int64_t x0 = planes ? 0 : int64_t(z % cols) * grid.x, y0 = planes ? 0 : int64_t(z / cols) * grid.y;
       return image->comps[planes ? z : 0].data + (y0 + y) * width + x0;
     },
-    samples.data(),
+    sink,
     grid,
     levels);
+}
+
+ResidualSamples
+DecodeResidualLayer(const std::vector<uint8_t> & codestream, const GridSize & grid, const std::string & name,
+                    int32_t levels)
+{
+  ResidualSamples samples(grid.NumberOfVoxels()); // not initialized: each written once below
+  DecodeResidualRows(codestream, grid, name, levels, [&](int32_t y, int32_t z, const int32_t * row) {
+    std::copy_n(row, grid.x, samples.data() + grid.Offset(0, y, z));
+  });
   return samples;
 }
 
@@ -815,27 +881,23 @@ ResidualSearch::ResidualSearch(const float * voxels, PixelType type, const Appro
   });
 }
 
-std::function<std::vector<int32_t>()>
+std::function<void(int32_t y, int32_t z, int32_t * row)>
 ResidualSearch::Source() const
 {
-  return [this] {
-    const double step = best.step;
-    if (!(step > 0.0))
-      throw std::invalid_argument("ResidualSearch: the residual step must be positive");
-    std::vector<int32_t> samples(grid.NumberOfVoxels());
+  if (!(best.step > 0.0))
+    throw std::invalid_argument("ResidualSearch: the residual step must be positive");
+  return [this, step = best.step](int32_t y, int32_t z, int32_t * row) {
     VisitPixelType(type, [&](auto pixel) {
       using T = decltype(pixel);
-      const T * decoded = reinterpret_cast<const T *>(splineVoxels.data());
-      ParallelFor(std::size_t(grid.z), 1, [&](std::size_t z) {
-        const uint64_t plane = uint64_t(grid.x) * uint64_t(grid.y);
-        for (uint64_t i = z * plane, end = i + plane; i < end; ++i)
-        {
-          const double r = std::round((double(voxels[i]) - double(decoded[i & voxelMask])) / step);
-          samples[i] = int32_t(std::clamp(r, -32767.0, 32767.0));
-        }
-      });
+      const T *      decoded = reinterpret_cast<const T *>(splineVoxels.data());
+      const uint64_t first = grid.Offset(0, y, z);
+      for (int32_t x = 0; x < grid.x; ++x)
+      {
+        const uint64_t i = first + uint64_t(x);
+        const double   r = std::round((double(voxels[i]) - double(decoded[i & voxelMask])) / step);
+        row[x] = int32_t(std::clamp(r, -32767.0, 32767.0));
+      }
     });
-    return samples;
   };
 }
 
@@ -843,17 +905,28 @@ double
 ResidualSearch::Measure(std::vector<uint8_t> && codestream, const ResidualCoding & coding, double target)
 {
   const std::size_t stored = StoredLayerBytes(codestream, grid);
-  Residual          residual{ best.step, DecodeResidualLayer(codestream, grid, "residual layer", coding.levels) };
-  double            error = 0.0;
+  // Summed row by row as the layer is decoded, without a volume of its samples; the rows' sums are added
+  // in the grid's order.
+  std::vector<double> rows(std::size_t(grid.y) * std::size_t(grid.z), 0.0);
   VisitPixelType(type, [&](auto pixel) {
     using T = decltype(pixel);
     const T * decoded = reinterpret_cast<const T *>(splineVoxels.data());
-    error = SumOverSlices(grid, [&](uint64_t i) {
-      const double e = double(voxels[i]) - double(AddResidual(decoded[i & voxelMask], residual, i));
-      return e * e;
-    });
+    DecodeResidualRows(
+      codestream, grid, "residual layer", coding.levels, [&](int32_t y, int32_t z, const int32_t * row) {
+        const uint64_t first = grid.Offset(0, y, z);
+        double         sum = 0.0;
+        for (int32_t x = 0; x < grid.x; ++x)
+        {
+          const uint64_t i = first + uint64_t(x);
+          const double   e = double(voxels[i]) - double(AddResidual(decoded[i & voxelMask], best.step, row[x]));
+          sum += e * e;
+        }
+        rows[std::size_t(z) * std::size_t(grid.y) + std::size_t(y)] = sum;
+      });
   });
-  residual = {};
+  double error = 0.0;
+  for (double sum : rows)
+    error += sum;
   ReturnFreedMemory(); // the decoder's buffers, freed on OpenJPEG's threads
   if (best.codestream.empty() || error < best.squaredError)
   {

@@ -130,17 +130,16 @@ DCVImageIO::Read(void * buffer)
   {
     this->ReadImageInformation();
   }
-  dcv::Approximation a;
   try
   {
-    a = dcv::Decode(m_File, { m_MaximumMemory });
+    dcv::VisitPixelType(m_File.header.pixelType, [&](auto pixel) {
+      dcv::DecodeVolume(m_File, static_cast<decltype(pixel) *>(buffer), { m_MaximumMemory });
+    });
   }
   catch (const dcv::FormatError & e)
   {
     itkExceptionMacro(<< e.what());
   }
-  dcv::VisitPixelType(m_File.header.pixelType,
-                      [&](auto pixel) { dcv::Rasterize(a, static_cast<decltype(pixel) *>(buffer)); });
 }
 
 void

@@ -287,18 +287,18 @@ WriteVolume(const TImage * image, const std::string & output, bool force, bool c
 CompressedFile
 ParseCompressedBytes(const std::vector<uint8_t> & bytes, const std::string & name);
 
-/** Decodes a parsed .dcv file as every reader does (Decode, then Rasterize: rounded and clamped to T) into
+/** Decodes a parsed .dcv file as every reader does (DecodeVolume: rounded and clamped to T) into
  * an itk::Image of pixel type T with the file's geometry. */
 template <typename T>
 typename itk::Image<T, 3>::Pointer
 DecodeImage(const CompressedFile & file, const DecodeLimits & limits = DecodeLimits())
 {
-  const Approximation a = Decode(file, limits); // refuses what exceeds `limits` before allocating
-  auto                image = itk::Image<T, 3>::New();
+  CheckDecodingMemory(file.header, file.name, DecodeOutput::Volume, limits); // before the image is allocated
+  auto image = itk::Image<T, 3>::New();
   itk::CopyDCVGeometry(file.header, image.GetPointer());
   image->SetBufferedRegion(image->GetLargestPossibleRegion());
   image->Allocate();
-  Rasterize(a, image->GetBufferPointer());
+  DecodeVolume(file, image->GetBufferPointer(), limits);
   return image;
 }
 
