@@ -251,6 +251,62 @@ TEST(ResidualLayer, RegionDecodeAddsTheLayer)
         EXPECT_EQ(box[i++], whole[g.Offset(x, y, z)]);
 }
 
+// DecodeVolume adds the layer row by row as it is decoded (and writes a constant spline with it): the
+// voxels of Decode() then Rasterize(), for integers (the clamping loop) and reals, with and without points.
+TEST(ResidualLayer, DecodeVolumeEqualsDecodeThenRasterize)
+{
+  const GridSize g{ 40, 36, 6 };
+  const auto     image = ThickSlices(g);
+  using Real = itk::Image<float, 3>;
+  auto real = Real::New();
+  real->SetRegions(image->GetLargestPossibleRegion());
+  real->SetSpacing(image->GetSpacing());
+  real->Allocate();
+  for (std::size_t i = 0; i < g.NumberOfVoxels(); ++i)
+    real->GetBufferPointer()[i] = 0.37f * float(image->GetBufferPointer()[i]);
+  int constant = 0, points = 0;
+  for (double bpv : { 0.25, 1.0 })
+  {
+    dcv::EncoderOptions options;
+    options.bitsPerVoxel = bpv;
+    std::vector<std::vector<uint8_t>> files;
+    for (const auto & r : { itk::DCVEncode(image.GetPointer(), options), itk::DCVEncode(real.GetPointer(), options) })
+      files.push_back(r.bytes);
+    // Points under a layer of their own, with and without the inter-slice wavelet.
+    options.residualLayer = false;
+    for (const auto & r : { itk::DCVEncode(image.GetPointer(), options), itk::DCVEncode(real.GetPointer(), options) })
+    {
+      dcv::CompressedFile file;
+      dcv::ParseFile(r.bytes, "x", file.header, file.payload);
+      const int32_t levels = bpv < 0.5 ? 0 : 1;
+      file.header.residualStep = bpv < 0.5 ? 1.0 : 0.37;
+      file.header.residualLevels = levels;
+      file.header.residualLayer = dcv::EncodeResidualLayer(
+        Samples(g, 40, 3), g, 3000, dcv::Wavelet::Irreversible97, dcv::Arrangement::Mosaic, levels);
+      files.push_back(dcv::SerializeFile(file.header, file.payload));
+    }
+    for (const std::vector<uint8_t> & bytes : files)
+    {
+      dcv::CompressedFile file;
+      file.name = "x";
+      dcv::ParseFile(bytes, file.name, file.header, file.payload);
+      if (file.header.residualLayer.empty())
+        continue;
+      (file.header.constantSpline ? constant : points) += 1;
+      dcv::VisitPixelType(file.header.pixelType, [&](auto pixel) {
+        using T = decltype(pixel);
+        std::vector<T> expected(g.NumberOfVoxels()), rows(g.NumberOfVoxels());
+        dcv::Rasterize(dcv::Decode(file), expected.data());
+        dcv::DecodeVolume(file, rows.data());
+        EXPECT_TRUE(std::equal(expected.begin(), expected.end(), rows.begin()))
+          << bpv << " bpv, " << (file.header.constantSpline ? "constant spline" : "points");
+      });
+    }
+  }
+  EXPECT_GT(constant, 0);
+  EXPECT_GT(points, 0);
+}
+
 // The compact form leaves out SOC, SIZ, COD, SOT, SOD, EOC and (9/7, up to 5 levels) the QCD, and gives
 // the very codestream back, for both arrangements, both wavelets and every number of resolutions.
 TEST(ResidualLayer, CompactFormGivesTheCodestreamBack)
