@@ -15,7 +15,7 @@
  *  limitations under the License.
  *
  *=========================================================================*/
-// libFuzzer target of the one decode path every reader takes: ParseFile -> Decode -> Rasterize, on the
+// libFuzzer target of the one decode path every reader takes: ParseFile -> DecodeVolume, on the
 // ITK-free core (Debian's ITK 5.2 headers refuse clang). Built by scripts/fuzz.sh twice: as is (the CRC-32
 // guards everything behind the header), and with DCV_FUZZ_FIX_CRC, which rewrites the last 4 bytes of each
 // input as the CRC-32 of the others, so that mutations reach the field checks and the payload decoder.
@@ -44,10 +44,10 @@ LLVMFuzzerTestOneInput(const uint8_t * data, size_t size)
     file.name = "'fuzz.dcv'";
     file.size = bytes.size();
     dcv::ParseFile(bytes, file.name, file.header, file.payload);
-    const dcv::Approximation a = dcv::Decode(file, limits);
+    dcv::CheckDecodingMemory(file.header, file.name, dcv::DecodeOutput::Volume, limits); // before the volume
     dcv::VisitPixelType(file.header.pixelType, [&](auto pixel) {
-      std::vector<decltype(pixel)> volume(a.grid.NumberOfVoxels());
-      dcv::Rasterize(a, volume.data(), 1);
+      std::vector<decltype(pixel)> volume(file.header.size.NumberOfVoxels());
+      dcv::DecodeVolume(file, volume.data(), limits, 1);
     });
   }
   catch (const dcv::FormatError &)
