@@ -304,35 +304,34 @@ TEST(InterSliceWavelet, RowByRowEqualsTheVolume)
   // Extremes, where the int64 lifting and the clamp to int32 matter.
   samples[3] = std::numeric_limits<int32_t>::max();
   samples[g.Offset(1, 2, 3)] = std::numeric_limits<int32_t>::min() + 1;
+  std::vector<int32_t> rows(samples.size());
+  std::vector<int>     given(std::size_t(g.y) * std::size_t(g.z));
+  // The sink of both directions: each row kept where it belongs, and counted.
+  const auto collect = [&](int32_t y, int32_t z, const int32_t * row) {
+    ++given[std::size_t(z) * std::size_t(g.y) + std::size_t(y)];
+    std::copy_n(row, g.x, rows.data() + g.Offset(0, y, z));
+  };
+  const auto eachOnce = [&] { return std::all_of(given.begin(), given.end(), [](int n) { return n == 1; }); };
   for (int32_t levels = 0; levels <= dcv::InterSliceLevels(g.z); ++levels)
   {
     std::vector<int32_t> volume = samples;
     dcv::ForwardInterSlice(volume, g, levels);
-    std::vector<int32_t> rows(samples.size(), -1);
-    std::vector<int>     given(std::size_t(g.y) * std::size_t(g.z), 0);
+    std::fill(rows.begin(), rows.end(), -1);
+    std::fill(given.begin(), given.end(), 0);
     dcv::ForwardInterSlice(
       [&](int32_t y, int32_t z, int32_t * row) { std::copy_n(samples.data() + g.Offset(0, y, z), g.x, row); },
-      [&](int32_t y, int32_t z, const int32_t * row) {
-        ++given[std::size_t(z) * std::size_t(g.y) + std::size_t(y)];
-        std::copy_n(row, g.x, rows.data() + g.Offset(0, y, z));
-      },
+      collect,
       g,
       levels);
     EXPECT_EQ(rows, volume) << levels << " levels, forward";
-    EXPECT_TRUE(std::all_of(given.begin(), given.end(), [](int n) { return n == 1; })) << levels << " levels";
+    EXPECT_TRUE(eachOnce()) << levels << " levels";
 
     std::vector<int32_t> inverse = volume;
     dcv::InverseInterSlice(inverse, g, levels);
     std::fill(rows.begin(), rows.end(), -1);
     std::fill(given.begin(), given.end(), 0);
-    dcv::InverseInterSlice([&](int32_t y, int32_t z) { return volume.data() + g.Offset(0, y, z); },
-                           [&](int32_t y, int32_t z, const int32_t * row) {
-                             ++given[std::size_t(z) * std::size_t(g.y) + std::size_t(y)];
-                             std::copy_n(row, g.x, rows.data() + g.Offset(0, y, z));
-                           },
-                           g,
-                           levels);
+    dcv::InverseInterSlice([&](int32_t y, int32_t z) { return volume.data() + g.Offset(0, y, z); }, collect, g, levels);
     EXPECT_EQ(rows, inverse) << levels << " levels, inverse";
-    EXPECT_TRUE(std::all_of(given.begin(), given.end(), [](int n) { return n == 1; })) << levels << " levels";
+    EXPECT_TRUE(eachOnce()) << levels << " levels";
   }
 }
