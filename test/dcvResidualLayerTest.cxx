@@ -588,3 +588,48 @@ TEST(ResidualLayer, FormByteShortensTheContainer)
   refuse(constant, form, 1 | 2 | 4 | 8, "unknown form bits 15");
   refuse(constant, 6, uint8_t(constant[6] & ~8), "unknown header flags");
 }
+
+// The decoders' row loop (int32 where the step is whole) against the one rule, AddResidual, at the ends
+// of every small integer type, every kind of step, and samples up to the ends of int32.
+template <typename T>
+void
+ExpectRowsAsAddResidual()
+{
+  const double lo = double(std::numeric_limits<T>::lowest()), hi = double(std::numeric_limits<T>::max());
+  std::vector<T> spline{ T(lo), T(lo + 1), T(0), T(1), T(hi / 2), T(hi - 1), T(hi) };
+  std::vector<int32_t> samples{ std::numeric_limits<int32_t>::min(), std::numeric_limits<int32_t>::max(), 0, 1, -1 };
+  for (int32_t b : { 1 << 16, 1 << 17, 65535, 65536, 131071, 131072, 131073 })
+    for (int32_t d : { -1, 0, 1 })
+    {
+      samples.push_back(b + d);
+      samples.push_back(-(b + d));
+    }
+  std::mt19937 random(7);
+  for (int i = 0; i < 200; ++i)
+    samples.push_back(int32_t(random() % 300000) - 150000);
+  int checked = 0;
+  for (double step : { 1.0, 2.0, 3.0, 7.0, 255.0, 1000.0, 65536.0, 131072.0, 262144.0, 1048576.0, 1048577.0, 0.5, 2.5 })
+  {
+    for (T voxel : spline)
+    {
+      std::vector<T> row(samples.size(), voxel);
+      dcv::detail::AddResidualToRow(step, samples.data(), row.data(), row.size());
+      for (std::size_t i = 0; i < samples.size(); ++i)
+      {
+        ASSERT_EQ(double(row[i]), double(dcv::AddResidual(voxel, step, samples[i])))
+          << "step " << step << ", voxel " << double(voxel) << ", sample " << samples[i];
+        ++checked;
+      }
+    }
+  }
+  EXPECT_EQ(checked, 13 * 7 * int(samples.size()));
+}
+
+TEST(ResidualLayer, AddResidualToRowIsAddResidual)
+{
+  ExpectRowsAsAddResidual<uint8_t>();
+  ExpectRowsAsAddResidual<int8_t>();
+  ExpectRowsAsAddResidual<uint16_t>();
+  ExpectRowsAsAddResidual<int16_t>();
+  ExpectRowsAsAddResidual<float>();
+}
