@@ -17,6 +17,7 @@
  *=========================================================================*/
 #include "dcvRefinementEngine.h"
 #include "dcvParallel.h"
+#include "dcvPixelSource.h"
 #include "dcvTetrahedralization.h"
 
 #include <Eigen/IterativeLinearSolvers>
@@ -26,6 +27,7 @@
 #include <chrono>
 #include <cmath>
 #include <limits>
+#include <memory>
 #include <queue>
 #include <stdexcept>
 #include <string>
@@ -107,9 +109,9 @@ private:
  * norm-256 at 0.03125 bpv) and their starts missed the cache one after the other; asked for together, the
  * misses overlap (ct-avm at 0.0625 bpv: CPU time 0.86, 0.91 with the last voxels, 0.98 with the bits).
  * The rows are kept per thread: f must not call it again. */
-template <typename TFunction>
+template <typename TPixel, typename TFunction>
 void
-ForEachSpanPrefetched(const GridSize & grid, const std::array<GridPoint, 4> & p, const float * image,
+ForEachSpanPrefetched(const GridSize & grid, const std::array<GridPoint, 4> & p, const TPixel * image,
                       const float * other, const uint64_t * bits, TFunction && f)
 {
   struct Span
@@ -201,12 +203,13 @@ ParametersForMode(Mode mode)
 
 struct RefinementEngine::Impl
 {
-  const float *        image;
-  GridSize             grid;
-  RefinementParameters parameters;
-  const float *        selection; // I_c: where positions are chosen (I* first, then I)
-  double               smoothedPSNR{ 0.0 };
-  Tetrahedralization   mesh;
+  const float *                image;
+  std::unique_ptr<PixelSource> pixels; // what the scans read of `image`
+  GridSize                     grid;
+  RefinementParameters         parameters;
+  const float *                selection; // I_c: where positions are chosen (I* first, then I)
+  double                       smoothedPSNR{ 0.0 };
+  Tetrahedralization           mesh;
 
   // Per vertex id.
   std::vector<double>   values;
@@ -367,14 +370,16 @@ struct RefinementEngine::Impl
       const LinearFunction L0{ CanonicalTetrahedron(p, without) };
       const LinearFunction W{ CanonicalTetrahedron(p, weight) };
       double               a = 0.0, b = 0.0;
-      ForEachSpanPrefetched(grid, p, image, nullptr, nullptr, [&](int32_t y, int32_t z, int32_t x0, int32_t x1) {
-        const float * row = image + grid.Offset(0, y, z);
-        for (int32_t x = x0; x <= x1; ++x)
-        {
-          const double w = W(x, y, z);
-          a += w * w;
-          b += w * (double(row[x]) - L0(x, y, z));
-        }
+      pixels->Visit([&](const auto * data) {
+        ForEachSpanPrefetched(grid, p, data, nullptr, nullptr, [&](int32_t y, int32_t z, int32_t x0, int32_t x1) {
+          const auto * row = data + grid.Offset(0, y, z);
+          for (int32_t x = x0; x <= x1; ++x)
+          {
+            const double w = W(x, y, z);
+            a += w * w;
+            b += w * ((*pixels)(row, x) - L0(x, y, z));
+          }
+        });
       });
       sums[i] = { a, b };
     });
@@ -435,6 +440,12 @@ struct RefinementEngine::Impl
   CellScan
   Scan(const Tetrahedralization::Cell & c) const
   {
+    return pixels->Visit([&](const auto * data) { return Scan(c, data); });
+  }
+  template <typename TPixel>
+  CellScan
+  Scan(const Tetrahedralization::Cell & c, const TPixel * data) const
+  {
     std::array<GridPoint, 4> p;
     std::array<double, 4>    v;
     for (int i = 0; i < 4; ++i)
@@ -452,13 +463,13 @@ struct RefinementEngine::Impl
     auto                       scanRow = [&](int32_t y, int32_t z, int32_t x0, int32_t x1) {
       const double   base = L.RowBase(y, z);
       const uint64_t rowOffset = grid.Offset(0, y, z);
-      const float *  row = image + rowOffset;
+      const TPixel * row = data + rowOffset;
       const float *  rowSelection = selection + rowOffset;
       for (int32_t x = x0; x <= x1; ++x)
       {
         // The same expression as Rasterize(), so decoder and engine agree to the bit.
         const double l = base + L.gx * double(x - L.origin[0]);
-        const double e = double(row[x]) - l;
+        const double e = (*pixels)(row, x) - l;
         sse += e * e;
         double es = e;
         if (separate)
@@ -475,7 +486,7 @@ struct RefinementEngine::Impl
       }
       s.count += uint64_t(x1 - x0 + 1);
     };
-    ForEachSpanPrefetched(grid, t.p, image, separate ? selection : nullptr, isVertex.data(), scanRow);
+    ForEachSpanPrefetched(grid, t.p, data, separate ? selection : nullptr, isVertex.data(), scanRow);
     s.sse = sse;
     s.sseSelection = separate ? sseSelection : sse;
     s.worst = worst;
@@ -874,6 +885,7 @@ RefinementEngine::RefinementEngine(const float * image, const GridSize & grid, c
   Impl & d = *m_Impl;
   d.mesh.SetScale(parameters.scale);
   d.image = image;
+  d.pixels = std::make_unique<PixelSource>(image, grid.NumberOfVoxels());
   d.grid = grid;
   d.parameters = parameters;
   d.selection = parameters.smoothed ? parameters.smoothed : image;
@@ -1251,13 +1263,13 @@ RefinementEngine::OptimizeValues()
           // sum u + g_j g_k sum u^2 to M_jk and a_j sum I + g_j sum u I to b_j: the voxels are read for sum I
           // and sum u I only (sum u and sum u^2 are closed forms, exact). The same values as summing w_j w_k
           // per voxel up to rounding; the files of the dev volumes came out the same.
-          ForEachSpanPrefetched(
-            d.grid, p, d.image, nullptr, nullptr, [&](int32_t y, int32_t z, int32_t x0, int32_t x1) {
-              const float * row = d.image + d.grid.Offset(0, y, z);
-              double        sumI = 0.0, sumUI = 0.0;
+          d.pixels->Visit([&](const auto * data) {
+            ForEachSpanPrefetched(d.grid, p, data, nullptr, nullptr, [&](int32_t y, int32_t z, int32_t x0, int32_t x1) {
+              const auto * row = data + d.grid.Offset(0, y, z);
+              double       sumI = 0.0, sumUI = 0.0;
               for (int32_t x = x0; x <= x1; ++x)
               {
-                const double value = double(row[x]);
+                const double value = (*d.pixels)(row, x);
                 sumI += value;
                 sumUI += double(x - x0) * value;
               }
@@ -1281,6 +1293,7 @@ RefinementEngine::OptimizeValues()
                 }
               }
             });
+          });
           for (int j = 0, e = 0; j < 4; ++j)
           {
             rhs[i][j] = r[j];

@@ -1,0 +1,100 @@
+/*=========================================================================
+ *
+ *  Copyright NumFOCUS
+ *
+ *  Licensed under the Apache License, Version 2.0 (the "License");
+ *  you may not use this file except in compliance with the License.
+ *  You may obtain a copy of the License at
+ *
+ *         http://www.apache.org/licenses/LICENSE-2.0.txt
+ *
+ *  Unless required by applicable law or agreed to in writing, software
+ *  distributed under the License is distributed on an "AS IS" BASIS,
+ *  WITHOUT WARRANTIES OR CONDITIONS OF ANY KIND, either express or implied.
+ *  See the License for the specific language governing permissions and
+ *  limitations under the License.
+ *
+ *=========================================================================*/
+// The engine's view of the image: a narrow copy where the voxels allow it, read as the very floats.
+#include "dcvPixelSource.h"
+
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <cstring>
+#include <limits>
+#include <random>
+#include <string>
+#include <vector>
+
+namespace
+{
+using dcv::PixelSource;
+
+/** Every voxel read through the source, as a row of the whole image, against the double of its float
+ * (bit for bit: -0 reads as +0 only where the float is -0 and the copy holds 0). */
+void
+ExpectReadsTheFloats(const std::vector<float> & image, unsigned bytes, const std::string & what)
+{
+  const PixelSource source(image.data(), image.size());
+  EXPECT_EQ(source.BytesPerVoxel(), bytes) << what;
+  std::size_t differ = 0;
+  source.Visit([&](const auto * row) {
+    for (std::size_t i = 0; i < image.size(); ++i)
+      differ += source(row, int64_t(i)) == double(image[i]) ? 0 : 1;
+  });
+  EXPECT_EQ(differ, 0u) << what;
+}
+
+std::vector<float>
+Integers(double lowest, double span, std::size_t n, double stride = 1.0)
+{
+  std::mt19937       random(7);
+  std::vector<float> image(n);
+  const auto         steps = uint64_t(span / stride);
+  for (auto & v : image)
+    v = float(lowest + stride * double(random() % (steps + 1)));
+  image[0] = float(lowest); // both ends present: the span is exactly `span`
+  image[1] = float(lowest + stride * double(steps));
+  return image;
+}
+
+TEST(PixelSource, CopiesIntegersIntoTheNarrowestWidth)
+{
+  ExpectReadsTheFloats(Integers(0, 255, 5000), 1, "uint8 values");
+  ExpectReadsTheFloats(Integers(-128, 255, 5000), 1, "int8 values");
+  ExpectReadsTheFloats(Integers(-1000, 255, 5000), 1, "256 values below zero");
+  ExpectReadsTheFloats(Integers(0, 256, 5000), 2, "257 values");
+  ExpectReadsTheFloats(Integers(-1024, 3071 + 1024, 5000), 2, "CT values");
+  ExpectReadsTheFloats(Integers(-32768, 65535, 5000), 2, "int16 values");
+  ExpectReadsTheFloats(Integers(0, 65535, 5000), 2, "uint16 values");
+  ExpectReadsTheFloats(Integers(0, 65536, 5000), 0, "65,537 values");
+  ExpectReadsTheFloats(Integers(-2147483648.0, 4294967295.0, 5000), 0, "int32 values");
+  // Large integers, far apart in float (128 at 2^30) but within 256 of each other.
+  ExpectReadsTheFloats(Integers(1073741824.0, 128.0, 5000, 128.0), 1, "integers near 2^30");
+  ExpectReadsTheFloats(Integers(-1073741824.0 - 128.0, 128.0, 5000, 128.0), 1, "integers near -2^30");
+}
+
+TEST(PixelSource, ReadsOtherVolumesAsTheirFloats)
+{
+  std::vector<float> image = Integers(0, 100, 5000);
+  image[4321] = 17.5f;
+  ExpectReadsTheFloats(image, 0, "one half");
+  image[4321] = std::nextafter(17.0f, 18.0f);
+  ExpectReadsTheFloats(image, 0, "one float just above an integer");
+  image[4321] = std::numeric_limits<float>::quiet_NaN();
+  {
+    const PixelSource source(image.data(), image.size());
+    EXPECT_EQ(source.BytesPerVoxel(), 0u) << "a NaN";
+  }
+  image[4321] = std::numeric_limits<float>::infinity();
+  ExpectReadsTheFloats(image, 0, "an infinity");
+  image[4321] = 3e38f;
+  ExpectReadsTheFloats(image, 0, "a huge value");
+  ExpectReadsTheFloats(std::vector<float>(10, -0.0f), 1, "negative zeros");
+  ExpectReadsTheFloats(std::vector<float>(10, 1e20f), 0, "a constant beyond int64");
+  ExpectReadsTheFloats(std::vector<float>(1, 5.0f), 1, "one voxel");
+  const PixelSource none(nullptr, 0);
+  EXPECT_EQ(none.BytesPerVoxel(), 0u);
+}
+} // namespace
