@@ -32,21 +32,14 @@ PixelSource::PixelSource(const float * image, uint64_t voxels)
   const float  lowest = *range.first;
   const double span = double(*range.second) - double(lowest);
   // (NaN anywhere: the floats; a NaN minimum or maximum makes the span NaN.)
-  if (!(span < 65536.0) || !(std::abs(lowest) < 1e18f))
+  if (!(span < 256.0) || !(std::abs(lowest) < 1e18f))
     return;
   // Within that range a float is an integer when its truncation gives it back; NaN is never cast.
   if (!std::all_of(image, image + voxels, [](float v) { return v == v && double(int64_t(v)) == double(v); }))
     return;
   m_Offset = double(lowest);
-  auto copy = [&](auto & out) {
-    using T = typename std::decay_t<decltype(out)>::value_type;
-    out.resize(voxels);
-    // v - lowest is exact: two integers of the same sign and scale, or both below 2^24.
-    ParallelFor(voxels, std::size_t(1) << 16, [&](std::size_t i) { out[i] = T(image[i] - lowest); });
-  };
-  if (span < 256.0)
-    copy(m_Bytes);
-  else
-    copy(m_Words);
+  m_Bytes.resize(voxels);
+  // v - lowest is exact: two integers of the same sign and scale, or both below 2^24.
+  ParallelFor(voxels, std::size_t(1) << 16, [&](std::size_t i) { m_Bytes[i] = uint8_t(image[i] - lowest); });
 }
 } // namespace dcv
