@@ -39,7 +39,7 @@ flags=(-std=c++17 -O1 -g -fno-omit-frame-pointer -frounding-math -fsanitize=addr
 core=(dcvFileFormat dcvCodec dcvArithmeticCoder dcvPositionCoder dcvApproximation dcvTetrahedralization
   dcvResidualLayer dcvInterSliceWavelet)
 # What src/itkDCV*IO.cxx need besides: the encoder (DCVImageIO writes too).
-encoder=(dcvEncoder dcvRateControl dcvRefinementEngine)
+encoder=(dcvEncoder dcvRateControl dcvRefinementEngine dcvPixelSource)
 compile() { # SOURCE OBJECT COMPILER FLAGS...: when the source or a header is newer than the object
   local source=$1 object=$2
   shift 2
