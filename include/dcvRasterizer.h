@@ -90,11 +90,6 @@ FloorDiv(int64_t a, int64_t b, double inverseOfB)
   }
   return q;
 }
-inline int64_t
-FloorDiv(int64_t a, int64_t b)
-{
-  return FloorDiv(a, b, 1.0 / double(b));
-}
 
 /** ceil and floor of a finite v with |v| < 2^31, as integers: std::ceil and std::floor are library calls
  * on the x86-64 baseline (no SSE 4.1), twice per slice of every cell rasterized. */
