@@ -24,6 +24,7 @@
 #include <array>
 #include <cstdint>
 #include <memory>
+#include <utility>
 #include <vector>
 
 namespace dcv
@@ -80,6 +81,12 @@ public:
    * once while nothing changes the tetrahedralization. */
   void
   IncidentCells(VertexId v, std::vector<Cell> & cells) const;
+
+  /** The finite cells incident to a vertex with six times their volume in grid units (|SignedVolume6|
+   * of their points), in no fixed order: what the decimation's removal costs read, without reading the
+   * cells' vertices. Reads only, as IncidentCells(). */
+  void
+  IncidentVolumes(VertexId v, std::vector<std::pair<CellId, uint64_t>> & cells) const;
 
   /** Renumbers the live finite cells 0, 1, ... in the order of their current ids (ids are never reused,
    * so without this the per-id state of a long run grows with every cell ever created). Returns the

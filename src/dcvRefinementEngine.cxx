@@ -774,15 +774,15 @@ struct RefinementEngine::Impl
   double
   RemovalCost(VertexId v)
   {
-    static thread_local std::vector<Tetrahedralization::Cell> incident;
-    mesh.IncidentCells(v, incident);
+    static thread_local std::vector<std::pair<Tetrahedralization::CellId, uint64_t>> incident;
+    mesh.IncidentVolumes(v, incident);
     // Summed in a fixed order (the incident cells come in the order of a walk that starts wherever CGAL
     // last pointed v), for reproducible keys.
     static thread_local std::vector<std::pair<double, double>> terms;
     terms.clear();
-    for (const auto & c : incident)
+    for (const auto & [cell, volume6] : incident)
     {
-      terms.emplace_back(cellError[c.id], double(Volume6(c))); // as Scan() gives it
+      terms.emplace_back(cellError[cell], double(volume6)); // as Scan() gives it
     }
     std::sort(terms.begin(), terms.end());
     double error = 0.0, volume = 0.0;

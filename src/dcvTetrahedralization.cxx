@@ -42,7 +42,12 @@ using VertexBase = CGAL::Triangulation_vertex_base_with_info_3<Tetrahedralizatio
 struct CellInfo
 {
   Tetrahedralization::CellId id{ Tetrahedralization::NoCell };
+  // Six times the cell's volume in grid units, kept where the id leaves room (CGAL's cell is no
+  // larger for it), so that the decimation's removal costs read no vertex; LargeVolume6 if it does
+  // not fit.
+  uint32_t volume6{ 0 };
 };
+constexpr uint32_t LargeVolume6 = ~uint32_t(0);
 using CellBase =
   CGAL::Triangulation_cell_base_with_info_3<CellInfo, Kernel, CGAL::Delaunay_triangulation_cell_base_3<Kernel>>;
 using DataStructure = CGAL::Triangulation_data_structure_3<VertexBase, CellBase, CGAL::Sequential_tag>;
@@ -66,6 +71,21 @@ struct Tetrahedralization::Impl
   std::vector<VertexHandle> vertices; // by vertex id (null once removed)
   std::vector<CellHandle>   cells;    // by cell id (null once the cell died)
   std::vector<CellHandle>   scratch;
+  std::vector<std::pair<std::array<VertexId, 4>, CellHandle>> keyed; // RegisterInOrder
+
+  uint64_t
+  Volume6(const CellHandle & c) const
+  {
+    return uint64_t(std::abs(SignedVolume6({ points[c->vertex(0)->info()],
+                                             points[c->vertex(1)->info()],
+                                             points[c->vertex(2)->info()],
+                                             points[c->vertex(3)->info()] })));
+  }
+
+  // Calls f(c) for every cell of v's star, infinite ones included, in no fixed order.
+  template <typename F>
+  void
+  ForEachIncident(VertexId id, F && f) const;
 
   // Gives ids to the new finite cells and reports them.
   void
@@ -82,6 +102,8 @@ struct Tetrahedralization::Impl
       throw std::length_error("Tetrahedralization: too many cells");
     }
     c->info().id = id;
+    const uint64_t volume6 = Volume6(c);
+    c->info().volume6 = volume6 < LargeVolume6 ? uint32_t(volume6) : LargeVolume6;
     cells.push_back(c);
     if (created)
     {
@@ -91,22 +113,24 @@ struct Tetrahedralization::Impl
   }
 
   // Registers the cells in `scratch` in an order fixed by their vertices: CGAL hands them over in
-  // memory order, which varies between runs, and cell ids, heap ties and error sums must not.
+  // memory order, which varies between runs, and cell ids, heap ties and error sums must not. Each
+  // cell's key (its sorted vertex ids) is made once, not at every comparison; no two cells share one.
   void
   RegisterInOrder(std::vector<Cell> & created)
   {
-    auto key = [](const CellHandle & c) {
+    keyed.clear();
+    for (const CellHandle & c : scratch)
+    {
       std::array<VertexId, 4> k{
         c->vertex(0)->info(), c->vertex(1)->info(), c->vertex(2)->info(), c->vertex(3)->info()
       };
       std::sort(k.begin(), k.end());
-      return k;
-    };
-    std::sort(
-      scratch.begin(), scratch.end(), [&key](const CellHandle & a, const CellHandle & b) { return key(a) < key(b); });
-    for (const CellHandle & c : scratch)
+      keyed.emplace_back(k, c);
+    }
+    std::sort(keyed.begin(), keyed.end(), [](const auto & a, const auto & b) { return a.first < b.first; });
+    for (const auto & kc : keyed)
     {
-      Register(c, &created);
+      Register(kc.second, &created);
     }
   }
 
@@ -266,17 +290,16 @@ Tetrahedralization::Remove(VertexId id, std::vector<CellId> & killed, std::vecto
   d.RegisterInOrder(created);
 }
 
+template <typename F>
 void
-Tetrahedralization::IncidentCells(VertexId id, std::vector<Cell> & out) const
+Tetrahedralization::Impl::ForEachIncident(VertexId id, F && f) const
 {
-  const Impl & d = *m_Impl;
-  out.clear();
-  const VertexHandle v = d.vertices.at(id);
+  const VertexHandle v = vertices.at(id);
   if (v == VertexHandle())
   {
     throw std::logic_error("Tetrahedralization: no such vertex");
   }
-  if (d.dt.dimension() < 3)
+  if (dt.dimension() < 3)
   {
     return; // no cell has an id yet
   }
@@ -328,12 +351,34 @@ Tetrahedralization::IncidentCells(VertexId id, std::vector<Cell> & out) const
   }
   for (const CellHandle & c : star)
   {
+    f(c);
+  }
+}
+
+void
+Tetrahedralization::IncidentCells(VertexId id, std::vector<Cell> & out) const
+{
+  out.clear();
+  m_Impl->ForEachIncident(id, [&out](const CellHandle & c) {
     if (c->info().id != NoCell)
     {
       out.push_back(Cell{ c->info().id,
                           { c->vertex(0)->info(), c->vertex(1)->info(), c->vertex(2)->info(), c->vertex(3)->info() } });
     }
-  }
+  });
+}
+
+void
+Tetrahedralization::IncidentVolumes(VertexId id, std::vector<std::pair<CellId, uint64_t>> & out) const
+{
+  out.clear();
+  const Impl & d = *m_Impl;
+  d.ForEachIncident(id, [&](const CellHandle & c) {
+    if (c->info().id != NoCell)
+    {
+      out.emplace_back(c->info().id, c->info().volume6 != LargeVolume6 ? c->info().volume6 : d.Volume6(c));
+    }
+  });
 }
 
 std::vector<Tetrahedralization::CellId>

@@ -322,6 +322,79 @@ TEST(Tetrahedralization, IncidentCellsWalkFindsTheWholeStar)
   EXPECT_THROW(mesh.IncidentCells(firstRandom, created), std::logic_error); // removed
 }
 
+/** IncidentVolumes() against the brute-force stars: the same cells, each with |SignedVolume6| of its grid
+ * points (not of the scaled points the tetrahedralization is built on). */
+void
+ExpectStarVolumes(const Tetrahedralization & mesh)
+{
+  const std::vector<Star> reference = StarsOfAllCells(mesh);
+  std::vector<std::pair<uint32_t, uint64_t>> walked;
+  std::size_t                                checked = 0;
+  for (uint32_t v = 0; v < mesh.NumberOfVertexIds(); ++v)
+  {
+    if (reference[v].empty())
+    {
+      continue;
+    }
+    std::vector<std::pair<uint32_t, uint64_t>> expected;
+    for (const auto & [id, vertices] : reference[v])
+    {
+      const std::array<GridPoint, 4> p{
+        mesh.Point(vertices[0]), mesh.Point(vertices[1]), mesh.Point(vertices[2]), mesh.Point(vertices[3])
+      };
+      expected.emplace_back(id, uint64_t(std::abs(SignedVolume6(p))));
+    }
+    mesh.IncidentVolumes(v, walked);
+    std::sort(walked.begin(), walked.end());
+    ASSERT_EQ(walked, expected) << "vertex " << v;
+    ++checked;
+  }
+  EXPECT_EQ(checked, mesh.NumberOfVertices());
+}
+
+TEST(Tetrahedralization, IncidentVolumesAreThoseOfTheStar)
+{
+  // Anisotropic scale, then insertions one by one and removals (cells CGAL recycles), then many at once.
+  const GridSize     grid{ 21, 15, 9 };
+  Tetrahedralization mesh;
+  mesh.SetScale({ 2, 1, 3 });
+  mesh.InsertMany(test::Corners(grid));
+  std::vector<uint32_t>                 killed;
+  std::vector<Tetrahedralization::Cell> created;
+  const std::vector<GridPoint>          points = test::RandomPoints(grid, 300, 7);
+  for (std::size_t i = 8; i < 200; ++i)
+  {
+    mesh.Insert(points[i], Tetrahedralization::NoCell, killed, created);
+  }
+  for (uint32_t v = 8; v < 200; v += 3)
+  {
+    mesh.Remove(v, killed, created);
+  }
+  ExpectStarVolumes(mesh);
+  mesh.InsertMany(std::vector<GridPoint>(points.begin() + 200, points.end()));
+  ExpectStarVolumes(mesh);
+  std::vector<std::pair<uint32_t, uint64_t>> removed;
+  EXPECT_THROW(mesh.IncidentVolumes(8, removed), std::logic_error);
+}
+
+TEST(Tetrahedralization, IncidentVolumesBeyond32Bits)
+{
+  // The corners of a 40,000 x 30,000 x 9 grid: six times a cell's volume is about 10^10, more than the
+  // 32 bits kept with each cell.
+  Tetrahedralization mesh;
+  mesh.InsertMany(test::Corners(GridSize{ 40000, 30000, 9 }));
+  std::vector<std::pair<uint32_t, uint64_t>> walked;
+  mesh.IncidentVolumes(0, walked);
+  ASSERT_FALSE(walked.empty());
+  uint64_t largest = 0;
+  for (const auto & c : walked)
+  {
+    largest = std::max(largest, c.second);
+  }
+  EXPECT_GT(largest, uint64_t(1) << 32);
+  ExpectStarVolumes(mesh);
+}
+
 TEST(Tetrahedralization, DuplicatePointsAreRefused)
 {
   std::vector<GridPoint> points = test::Corners(GridSize{ 4, 4, 4 });
