@@ -377,21 +377,23 @@ TEST(Tetrahedralization, IncidentVolumesAreThoseOfTheStar)
   EXPECT_THROW(mesh.IncidentVolumes(8, removed), std::logic_error);
 }
 
-TEST(Tetrahedralization, IncidentVolumesBeyond32Bits)
+TEST(Tetrahedralization, IncidentVolumesBeyond24Bits)
 {
-  // The corners of a 40,000 x 30,000 x 9 grid: six times a cell's volume is about 10^10, more than the
-  // 32 bits kept with each cell.
+  // A 1000 x 800 x 600 grid with a few points: six times the volume of some cells is above the 24 bits
+  // kept with each cell (those are computed from their points), of others below.
+  const GridSize     grid{ 1000, 800, 600 };
   Tetrahedralization mesh;
-  mesh.InsertMany(test::Corners(GridSize{ 40000, 30000, 9 }));
-  std::vector<std::pair<uint32_t, uint64_t>> walked;
-  mesh.IncidentVolumes(0, walked);
-  ASSERT_FALSE(walked.empty());
-  uint64_t largest = 0;
-  for (const auto & c : walked)
+  mesh.InsertMany(test::RandomPoints(grid, 12, 5));
+  uint64_t smallest = ~uint64_t(0), largest = 0;
+  for (const auto & c : mesh.FiniteCells())
   {
-    largest = std::max(largest, c.second);
+    const uint64_t v = uint64_t(std::abs(SignedVolume6(
+      { mesh.Point(c.vertices[0]), mesh.Point(c.vertices[1]), mesh.Point(c.vertices[2]), mesh.Point(c.vertices[3]) })));
+    smallest = std::min(smallest, v);
+    largest = std::max(largest, v);
   }
-  EXPECT_GT(largest, uint64_t(1) << 32);
+  ASSERT_GT(largest, uint64_t(1) << 24);
+  ASSERT_LT(smallest, uint64_t(1) << 24);
   ExpectStarVolumes(mesh);
 }
 
