@@ -34,7 +34,8 @@ namespace dcv
 namespace
 {
 /** The earlier neighbours of each vertex through the tetrahedra (those of smaller index: the only ones a
- * prediction reads, half the pairs), as compressed rows. */
+ * prediction reads, half the pairs), as compressed rows, each in the order of its first tetrahedron: a
+ * prediction sums integers, so the order within a row does not matter. */
 struct Adjacency
 {
   std::vector<uint32_t> start; // size n + 1
@@ -42,17 +43,26 @@ struct Adjacency
 
   Adjacency(std::size_t n, const std::vector<Tetrahedron> & tetrahedra)
   {
-    // Compressed rows by counting, then each short row sorted and deduplicated: much faster than
-    // sorting all vertex pairs at once. An eighth of the rows at a time: before deduplication the
-    // pairs (6 a tetrahedron) are about five times the rows after it, and rate control encodes at
-    // the encoder's peak (norm-256 at 0.25 bpv: 126 MB of pairs at once). As many eighths at once as
-    // there are threads, each into its own rows, appended in order: the same rows.
+    // Compressed rows by counting, then each short row deduplicated with marks (no sort: rate control
+    // codes a mesh some ten times, and sorting the rows was a third of it). An eighth of the rows at
+    // a time: before deduplication the pairs (6 a tetrahedron) are about five times the rows after it,
+    // and rate control encodes at the encoder's peak (norm-256 at 0.25 bpv: 126 MB of pairs at once).
+    // The pairs of every row are counted in one pass; as many eighths at once as there are threads
+    // then fill their own rows, appended in order: the same rows whatever the threads.
     constexpr std::size_t parts = 8;
     start.assign(n + 1, 0);
     // Room for all the rows at once, which hold each edge once: a tetrahedralization of a ball has
     // n + t + h / 2 - 1 edges (Euler), h <= 2 n hull faces. Grown by doubling and shrunk by a copy,
     // the rows took up to three times their size at once.
     neighbour.reserve(std::min(2 * n + tetrahedra.size(), 6 * tetrahedra.size()));
+    // pairs[r]: row r's entries before deduplication (the vertices of its tetrahedra before it),
+    // summed into offsets.
+    std::vector<uint32_t> pairs(n + 1, 0);
+    for (const auto & t : tetrahedra)
+      for (int i = 0; i < 4; ++i)
+        pairs[t[i] + 1] += uint32_t(t[0] < t[i]) + uint32_t(t[1] < t[i]) + uint32_t(t[2] < t[i]) + uint32_t(t[3] < t[i]);
+    for (std::size_t r = 0; r < n; ++r)
+      pairs[r + 1] += pairs[r];
     const std::size_t                  rowsPerPart = (n + parts - 1) / parts;
     const std::size_t                  together = std::min<std::size_t>(parts, CurrentThreads());
     std::vector<std::vector<uint32_t>> rows(together), ends(together);
@@ -60,29 +70,30 @@ struct Adjacency
     {
       ParallelFor(std::min(together, parts - batch), 1, [&](std::size_t k) {
         const std::size_t     lo = std::min(n, (batch + k) * rowsPerPart), hi = std::min(n, lo + rowsPerPart);
-        std::vector<uint32_t> first(hi - lo + 1, 0);
-        for (const auto & t : tetrahedra)
-          for (int i = 0; i < 4; ++i)
-            if (t[i] >= lo && t[i] < hi)
-              for (int j = 0; j < 4; ++j)
-                first[t[i] - lo + 1] += t[j] < t[i] ? 1 : 0;
-        for (std::size_t r = 0; r < hi - lo; ++r)
-          first[r + 1] += first[r];
-        std::vector<uint32_t> pairs(first.back(), 0);
-        std::vector<uint32_t> fill(first.begin(), first.end() - 1);
+        const uint32_t        base = pairs[lo];
+        std::vector<uint32_t> entries(pairs[hi] - base, 0);
+        std::vector<uint32_t> fill(pairs.begin() + lo, pairs.begin() + hi);
         for (const auto & t : tetrahedra)
           for (int i = 0; i < 4; ++i)
             if (t[i] >= lo && t[i] < hi)
               for (int j = 0; j < 4; ++j)
                 if (t[j] < t[i])
-                  pairs[fill[t[i] - lo]++] = t[j];
+                  entries[fill[t[i] - lo]++ - base] = t[j];
+        // mark[j] == r + 1: j is in row r already (rows of a part are distinct, so no clearing).
+        std::vector<uint32_t> mark(hi, 0);
         rows[k].clear();
         ends[k].clear();
-        for (std::size_t r = 0; r < hi - lo; ++r)
+        for (std::size_t r = lo; r < hi; ++r)
         {
-          const auto b = pairs.begin() + first[r], e = pairs.begin() + first[r + 1];
-          std::sort(b, e);
-          rows[k].insert(rows[k].end(), b, std::unique(b, e));
+          for (uint32_t e = pairs[r] - base; e < pairs[r + 1] - base; ++e)
+          {
+            const uint32_t j = entries[e];
+            if (mark[j] != uint32_t(r + 1))
+            {
+              mark[j] = uint32_t(r + 1);
+              rows[k].push_back(j);
+            }
+          }
           ends[k].push_back(uint32_t(rows[k].size()));
         }
       });
