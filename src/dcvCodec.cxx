@@ -60,7 +60,8 @@ struct Adjacency
     std::vector<uint32_t> pairs(n + 1, 0);
     for (const auto & t : tetrahedra)
       for (int i = 0; i < 4; ++i)
-        pairs[t[i] + 1] += uint32_t(t[0] < t[i]) + uint32_t(t[1] < t[i]) + uint32_t(t[2] < t[i]) + uint32_t(t[3] < t[i]);
+        pairs[t[i] + 1] +=
+          uint32_t(t[0] < t[i]) + uint32_t(t[1] < t[i]) + uint32_t(t[2] < t[i]) + uint32_t(t[3] < t[i]);
     for (std::size_t r = 0; r < n; ++r)
       pairs[r + 1] += pairs[r];
     const std::size_t                  rowsPerPart = (n + parts - 1) / parts;

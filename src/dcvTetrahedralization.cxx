@@ -38,12 +38,12 @@ namespace
 // Integer coordinates below 2^16 are exact in doubles, and the kernel's predicates are exact.
 using Kernel = CGAL::Exact_predicates_inexact_constructions_kernel;
 using VertexBase = CGAL::Triangulation_vertex_base_with_info_3<Tetrahedralization::VertexId, Kernel>;
+constexpr uint32_t LargeVolume6 = (uint32_t(1) << 24) - 1;
 // CGAL default-initializes the info of the cells it creates: give the identifier a safe default.
 // Six times the cell's volume in grid units is kept with its id, so that the decimation's removal
 // costs read no vertex. Packed into 7 bytes, the info fills the padding after CGAL's own byte, and
 // the cell stays 72 bytes (with 8 it is 80: 44 MB more at norm-256's 0.25 bpv, where the peak is);
 // a volume beyond 24 bits (a cell of more than 2.8 M voxels: the first few) is computed instead.
-constexpr uint32_t LargeVolume6 = (uint32_t(1) << 24) - 1;
 #pragma pack(push, 1)
 struct CellInfo
 {
@@ -72,6 +72,7 @@ using Delaunay = CGAL::Delaunay_triangulation_3<Kernel, DataStructure>;
 using CellHandle = Delaunay::Cell_handle;
 using VertexHandle = Delaunay::Vertex_handle;
 using CgalPoint = Kernel::Point_3;
+using KeyedCell = std::pair<std::array<Tetrahedralization::VertexId, 4>, CellHandle>; // sorted vertex ids
 
 CgalPoint
 ToCgal(const GridPoint & p, const GridScale & s)
@@ -88,7 +89,7 @@ struct Tetrahedralization::Impl
   std::vector<VertexHandle> vertices; // by vertex id (null once removed)
   std::vector<CellHandle>   cells;    // by cell id (null once the cell died)
   std::vector<CellHandle>   scratch;
-  std::vector<std::pair<std::array<VertexId, 4>, CellHandle>> keyed; // RegisterInOrder
+  std::vector<KeyedCell>    keyed; // RegisterInOrder's
 
   uint64_t
   Volume6(const CellHandle & c) const

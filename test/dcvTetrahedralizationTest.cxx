@@ -327,7 +327,7 @@ TEST(Tetrahedralization, IncidentCellsWalkFindsTheWholeStar)
 void
 ExpectStarVolumes(const Tetrahedralization & mesh)
 {
-  const std::vector<Star> reference = StarsOfAllCells(mesh);
+  const std::vector<Star>                    reference = StarsOfAllCells(mesh);
   std::vector<std::pair<uint32_t, uint64_t>> walked;
   std::size_t                                checked = 0;
   for (uint32_t v = 0; v < mesh.NumberOfVertexIds(); ++v)
