@@ -28,6 +28,7 @@
 #include <algorithm>
 #include <array>
 #include <cstdint>
+#include <cstring>
 #include <stdexcept>
 #include <string>
 
@@ -47,9 +48,23 @@ constexpr uint32_t LargeVolume6 = (uint32_t(1) << 24) - 1;
 #pragma pack(push, 1)
 struct CellInfo
 {
-  Tetrahedralization::CellId id{ Tetrahedralization::NoCell };
-  uint8_t                    volume6[3]{ 0, 0, 0 }; // little-endian, LargeVolume6 if it does not fit
+  // Bytes only, read and written by value: a reference to a member of a packed struct could be
+  // misaligned (the id starts at the cell's 65th byte).
+  uint8_t id[4]{ 0xff, 0xff, 0xff, 0xff }; // Tetrahedralization::NoCell
+  uint8_t volume6[3]{ 0, 0, 0 };           // little-endian, LargeVolume6 if it does not fit
 
+  Tetrahedralization::CellId
+  Id() const
+  {
+    Tetrahedralization::CellId v;
+    std::memcpy(&v, id, sizeof v);
+    return v;
+  }
+  void
+  SetId(Tetrahedralization::CellId v)
+  {
+    std::memcpy(id, &v, sizeof v);
+  }
   void
   SetVolume6(uint64_t v)
   {
@@ -65,6 +80,7 @@ struct CellInfo
   }
 };
 #pragma pack(pop)
+static_assert(Tetrahedralization::NoCell == 0xffffffffu, "CellInfo's default id");
 using CellBase =
   CGAL::Triangulation_cell_base_with_info_3<CellInfo, Kernel, CGAL::Delaunay_triangulation_cell_base_3<Kernel>>;
 using DataStructure = CGAL::Triangulation_data_structure_3<VertexBase, CellBase, CGAL::Sequential_tag>;
@@ -111,7 +127,7 @@ struct Tetrahedralization::Impl
   {
     if (dt.is_infinite(c))
     {
-      c->info().id = NoCell;
+      c->info().SetId(NoCell);
       return;
     }
     const CellId id = CellId(cells.size());
@@ -119,7 +135,7 @@ struct Tetrahedralization::Impl
     {
       throw std::length_error("Tetrahedralization: too many cells");
     }
-    c->info().id = id;
+    c->info().SetId(id);
     c->info().SetVolume6(Volume6(c));
     cells.push_back(c);
     if (created)
@@ -264,9 +280,9 @@ Tetrahedralization::Insert(const GridPoint & p, CellId hint, std::vector<CellId>
   d.dt.find_conflicts(q, c, CGAL::Oneset_iterator<Delaunay::Facet>(facet), std::back_inserter(d.scratch));
   for (const CellHandle & dead : d.scratch)
   {
-    if (dead->info().id != NoCell)
+    if (dead->info().Id() != NoCell)
     {
-      killed.push_back(dead->info().id);
+      killed.push_back(dead->info().Id());
     }
   }
   d.Kill(killed);
@@ -295,9 +311,9 @@ Tetrahedralization::Remove(VertexId id, std::vector<CellId> & killed, std::vecto
   d.dt.incident_cells(v, std::back_inserter(d.scratch));
   for (const CellHandle & dead : d.scratch)
   {
-    if (dead->info().id != NoCell)
+    if (dead->info().Id() != NoCell)
     {
-      killed.push_back(dead->info().id);
+      killed.push_back(dead->info().Id());
     }
   }
   d.Kill(killed);
@@ -377,9 +393,9 @@ Tetrahedralization::IncidentCells(VertexId id, std::vector<Cell> & out) const
 {
   out.clear();
   m_Impl->ForEachIncident(id, [&out](const CellHandle & c) {
-    if (c->info().id != NoCell)
+    if (c->info().Id() != NoCell)
     {
-      out.push_back(Cell{ c->info().id,
+      out.push_back(Cell{ c->info().Id(),
                           { c->vertex(0)->info(), c->vertex(1)->info(), c->vertex(2)->info(), c->vertex(3)->info() } });
     }
   });
@@ -391,10 +407,10 @@ Tetrahedralization::IncidentVolumes(VertexId id, std::vector<std::pair<CellId, u
   out.clear();
   const Impl & d = *m_Impl;
   d.ForEachIncident(id, [&](const CellHandle & c) {
-    if (c->info().id != NoCell)
+    if (c->info().Id() != NoCell)
     {
       const uint32_t kept = c->info().Volume6();
-      out.emplace_back(c->info().id, kept != LargeVolume6 ? kept : d.Volume6(c));
+      out.emplace_back(c->info().Id(), kept != LargeVolume6 ? kept : d.Volume6(c));
     }
   });
 }
@@ -410,7 +426,7 @@ Tetrahedralization::CompactCellIds()
     if (d.cells[old] != CellHandle())
     {
       renumbered[old] = next;
-      d.cells[old]->info().id = next;
+      d.cells[old]->info().SetId(next);
       d.cells[next++] = d.cells[old]; // next <= old: nothing unread is overwritten
     }
   }
