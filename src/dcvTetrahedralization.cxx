@@ -50,9 +50,10 @@ struct CellInfo
 {
   // Bytes only, read and written by value: a reference to a member of a packed struct could be
   // misaligned (the id starts at the cell's 65th byte).
-  uint8_t id[4]{ 0xff, 0xff, 0xff, 0xff }; // Tetrahedralization::NoCell
-  uint8_t volume6[3]{ 0, 0, 0 };           // little-endian, LargeVolume6 if it does not fit
+  uint8_t id[4];
+  uint8_t volume6[3]{ 0, 0, 0 }; // little-endian, LargeVolume6 if it does not fit
 
+  CellInfo() { SetId(Tetrahedralization::NoCell); }
   Tetrahedralization::CellId
   Id() const
   {
@@ -80,7 +81,6 @@ struct CellInfo
   }
 };
 #pragma pack(pop)
-static_assert(Tetrahedralization::NoCell == 0xffffffffu, "CellInfo's default id");
 using CellBase =
   CGAL::Triangulation_cell_base_with_info_3<CellInfo, Kernel, CGAL::Delaunay_triangulation_cell_base_3<Kernel>>;
 using DataStructure = CGAL::Triangulation_data_structure_3<VertexBase, CellBase, CGAL::Sequential_tag>;
