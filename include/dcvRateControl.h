@@ -55,11 +55,16 @@ constexpr double BitsPerPointOffsetDecimating = 6.5;
 constexpr double BitsPerPointOffsetRefining = 9.5;
 /** Corrections of the count before only decimation is used to get under the budget. */
 constexpr unsigned MaximumCorrections = 6;
-/** Share of the progress spent by the first run of the method, and by the end of the first fit. */
-constexpr double FirstRunProgress = 0.7;
-constexpr double FirstFitProgress = 0.8;
-/** Share of the first run's progress given to its first refinement. */
-constexpr double RefinementShare = 0.4;
+/** Progress is reported in units of work, an insertion being 1, from the times of norm-256's stages at
+ * 0.03125 and 0.25 bpv: a removal costs RemovalWork, a correction of the count (a least-squares solve,
+ * its rescan and an encode) CorrectionWork per point, a step trial (a rescan and an encode)
+ * StepTrialWork per point. A fit is expected to take 1 + CorrectionsPerOctave x |log2(final / current
+ * count)| corrections (2 at 0.03125 bpv, 5 at 0.25 on norm-256). The work left is estimated again after
+ * each encode; the fraction shown never goes back. */
+constexpr double RemovalWork = 3.0;
+constexpr double CorrectionWork = 0.25;
+constexpr double StepTrialWork = 0.1;
+constexpr double CorrectionsPerOctave = 2.5;
 /** A competitor's squared error abandons the points when theirs, carried to the target size (error ~
  * size^-4 below it, size^-0.5 above: optimistic, see ApproximateToBudget) and divided by this, is
  * still above it: after the first refinement, where decimation and least squares then lowered the
@@ -84,6 +89,17 @@ constexpr double QualityCountTolerance = 0.01;
 /** Quality target: at most this many Resize() steps before giving up. */
 constexpr unsigned MaximumQualitySteps = 40;
 } // namespace RateControl
+
+/** The point count whose payload the size law puts at `target` bytes, from the (count, size) states of
+ * one fit (the last is the current one; all with one quantization step): between the last two states
+ * of different counts, size ~ count^beta with beta measured there; from one state, the law of an
+ * arbitrary subset of `voxels`, bits per point = log2(voxels / count) + c with c measured at it, whose
+ * local exponent is 1 - 1 / (ln 2 x bits per point). beta is kept in [0.5, 1.5]. Rate control uses it to
+ * estimate the work left for its progress; its fit keeps the bits-per-point correction (beta 1), since
+ * fits by this law, quicker on norm-256 at 0.25 bpv (beta near 0.65 there), gave other meshes and
+ * 0.004 to 0.07 dB less on 4 to 7 of the 40 dev runs (docs/profile.md, session of 12-05). */
+DelaunayCompression_EXPORT double
+FittedCount(const std::vector<std::pair<double, double>> & states, double voxels, double target);
 
 /** The default quantization step: 1/64 of the PSNR peak (4 for 8-bit data), a whole number for
  * integer data. */

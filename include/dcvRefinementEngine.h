@@ -150,9 +150,10 @@ public:
 
   /** Brings the point count to `numberOfPoints` on the current tetrahedralization: Decimate() when
    * there are more, Refine() when fewer, then least-squares values again when they are on. Rate
-   * control uses it to adjust a finished approximation instead of running the method again. */
+   * control uses it to adjust a finished approximation instead of running the method again. `progress`
+   * follows the insertions or removals (not the solve). */
   void
-  Resize(std::size_t numberOfPoints);
+  Resize(std::size_t numberOfPoints, const ProgressFunction & progress = ProgressFunction());
 
   /** Changes the quantization step of the vertex values: each value is quantized again, from the
    * least-squares solution of the current tetrahedralization when the mode has least squares and

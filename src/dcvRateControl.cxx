@@ -29,6 +29,78 @@ namespace dcv
 {
 using namespace RateControl;
 
+double
+FittedCount(const std::vector<std::pair<double, double>> & states, double voxels, double target)
+{
+  if (states.empty() || !(states.back().first > 0.0) || !(states.back().second > 0.0) || !(target > 0.0))
+  {
+    throw std::invalid_argument("FittedCount: needs a state with points and bytes, and a target");
+  }
+  const auto [count, size] = states.back();
+  double beta = 0.0;
+  for (std::size_t i = states.size() - 1; i-- > 0 && beta == 0.0;)
+  {
+    const auto [n, s] = states[i];
+    if (n != count && n > 0.0 && s > 0.0 && s != size)
+    {
+      beta = std::log(size / s) / std::log(count / n);
+    }
+  }
+  if (!(beta > 0.0))
+  {
+    const double bitsPerPoint = size * 8.0 / count;
+    beta = bitsPerPoint > 1.0 ? 1.0 - 1.0 / (std::log(2.0) * bitsPerPoint) : 1.0;
+  }
+  beta = std::clamp(beta, 0.5, 1.5);
+  return std::clamp(count * std::pow(target / size, 1.0 / beta), 8.0, std::max(8.0, voxels));
+}
+
+namespace
+{
+/** The fraction of ApproximateToBudget done, from the units of work done and those estimated to be left
+ * (RemovalWork and the others): shown only when it grows. */
+class BudgetProgress
+{
+public:
+  explicit BudgetProgress(const RefinementEngine::ProgressFunction & report)
+    : m_Report(report)
+  {}
+
+  /** A progress function for a stage of `units`, after which `after` units are estimated to be left. */
+  RefinementEngine::ProgressFunction
+  Stage(double units, double after)
+  {
+    if (!m_Report)
+      return {};
+    return [this, units, after](double f) { Show(m_Done + f * units, (1.0 - f) * units + after); };
+  }
+
+  /** A stage of `units` is done; `after` units are estimated to be left. */
+  void
+  Done(double units, double after)
+  {
+    m_Done += units;
+    Show(m_Done, after);
+  }
+
+private:
+  void
+  Show(double done, double left)
+  {
+    const double f = std::clamp(done / std::max(1.0, done + left), 0.0, 1.0);
+    if (m_Report && f > m_Shown)
+    {
+      m_Shown = f;
+      m_Report(f);
+    }
+  }
+
+  const RefinementEngine::ProgressFunction & m_Report;
+  double                                     m_Done{ 0.0 };
+  double                                     m_Shown{ 0.0 };
+};
+} // namespace
+
 BudgetResult
 ApproximateToBudget(RefinementEngine & engine, std::size_t payloadBytes, double q0,
                     const std::vector<double> & stepMultiples, const RefinementEngine::ProgressFunction & progress,
@@ -69,29 +141,63 @@ ApproximateToBudget(RefinementEngine & engine, std::size_t payloadBytes, double 
     const double ratio = size / (TargetFill * budget);
     return error * (ratio < 1.0 ? std::pow(ratio, 4.0) : std::sqrt(ratio));
   };
+  // Work left after an encoded state of `count` points (RemovalWork and the others), the size law
+  // predicting the final count from the fit's states; with the step trials and a correction after them
+  // while they are to come. Before the first encode the first count is taken for the final one.
+  const double trials = double(stepMultiples.size() - 1);
+  auto         workLeft = [&](const std::vector<std::pair<double, double>> & fitted, bool stepsToCome) {
+    const double count = fitted.empty() ? double(result.firstCount) : fitted.back().first;
+    const double size = fitted.empty() ? TargetFill * budget : fitted.back().second;
+    const double final = fitted.empty() ? count : FittedCount(fitted, voxels, TargetFill * budget);
+    double       work = 0.0;
+    if (!(size <= budget && size >= MinimumFill * budget))
+    {
+      work += std::abs(final - count) * (final > count ? 1.0 : RemovalWork) +
+              (1.0 + CorrectionsPerOctave * std::abs(std::log2(final / count))) * CorrectionWork * final;
+    }
+    if (stepsToCome && trials > 0.0)
+      work += (trials + 1.0) * StepTrialWork * final + CorrectionWork * final;
+    return work;
+  };
+  // The first run: the refinement, the schedule of removals and insertions back (k = n/2, n/4, ...),
+  // a solve and an encode.
+  const double first = double(result.firstCount);
+  double       removals = 0.0;
+  for (std::size_t k = result.firstCount / 2; decimates && k > 0; k /= 2)
+    removals += double(k);
+  const double   schedule = (RemovalWork + 1.0) * removals;
+  BudgetProgress shown(progress);
+  double         afterFirstRun = workLeft({}, true);
   // The refinement alone first: where even its error, carried to the target size and lowered by the
   // most the rest of the method and the rate control were measured to gain, stays above the
   // competitor's, the points are abandoned.
-  engine.Refine(result.firstCount, [&](double f) {
-    if (progress)
-      progress(FirstRunProgress * RefinementShare * f);
-  });
+  engine.Refine(result.firstCount, shown.Stage(first, schedule + CorrectionWork * first + afterFirstRun));
+  shown.Done(first, schedule + CorrectionWork * first + afterFirstRun);
   const double competitorError = competitor ? competitor() : std::numeric_limits<double>::infinity();
   if (std::isfinite(competitorError))
   {
     const double refinedSize =
       double(EncodePayload(engine.GetApproximation(), q0, engine.GetParameters().quantizationStep, true).size());
+    afterFirstRun = workLeft({ { first, refinedSize } }, true); // the law's final count, not the first
     if (carried(engine.GetSquaredError(), refinedSize) / AbandonAfterRefinement > competitorError)
     {
       result.abandoned = true;
       return result;
     }
   }
+  // Approximate() reports its (done) refinement as the first part of its operations: only the rest counts.
+  const RefinementEngine::ProgressFunction scheduleShown =
+    shown.Stage(schedule, CorrectionWork * first + afterFirstRun);
   engine.Approximate(result.firstCount, [&](double f) {
-    if (progress)
-      progress(FirstRunProgress * (RefinementShare + (1.0 - RefinementShare) * f));
+    if (scheduleShown && removals > 0.0)
+      scheduleShown(std::clamp((f * (first + 2.0 * removals) - first) / (2.0 * removals), 0.0, 1.0));
   });
   encode();
+  // (count, size) of the states of the current step: what the work left is estimated from.
+  std::vector<std::pair<double, double>> fitted{ { double(engine.GetNumberOfPoints()),
+                                                   double(result.payload.size()) } };
+  bool                                   stepsToCome = stepMultiples.size() > 1;
+  shown.Done(schedule + CorrectionWork * first, workLeft(fitted, stepsToCome));
   if (double(result.payload.size()) >= AbandonNearTarget * TargetFill * budget &&
       carried(engine.GetSquaredError(), double(result.payload.size())) / AbandonAfterFirstRun > competitorError)
   {
@@ -102,6 +208,17 @@ ApproximateToBudget(RefinementEngine & engine, std::size_t payloadBytes, double 
   // Adjusts the point count until the payload fills MinimumFill to all of the budget. (Fitting the
   // count without solving for least-squares values at each step, and solving once at the end, was
   // measured 0.01 to 0.03 dB worse on neghip, ironprot and ct-avm: the solved values guide decimation.)
+  auto resize = [&](std::size_t target) {
+    const double count = double(engine.GetNumberOfPoints());
+    const double change = std::abs(double(target) - count) * (double(target) > count ? 1.0 : RemovalWork);
+    const double stage = change + CorrectionWork * double(target);
+    // While the points change, the work left is what the state before estimated, less what is done.
+    engine.Resize(target, shown.Stage(change, std::max(stage, workLeft(fitted, stepsToCome)) - change));
+    ++result.adjustments;
+    encode();
+    fitted.emplace_back(double(engine.GetNumberOfPoints()), double(result.payload.size()));
+    shown.Done(stage, workLeft(fitted, stepsToCome));
+  };
   auto fit = [&] {
     for (unsigned i = 0; i < MaximumCorrections; ++i)
     {
@@ -117,9 +234,7 @@ ApproximateToBudget(RefinementEngine & engine, std::size_t payloadBytes, double 
       {
         target = size > budget ? count - 1 : count + 1;
       }
-      engine.Resize(target);
-      ++result.adjustments;
-      encode();
+      resize(target);
       if (engine.GetNumberOfPoints() == count)
       {
         break; // exact approximation: no point left to add
@@ -135,14 +250,10 @@ ApproximateToBudget(RefinementEngine & engine, std::size_t payloadBytes, double 
                                 " bytes of payload, more than the " + std::to_string(payloadBytes) + " allowed");
       }
       const double excess = 1.0 - TargetFill * budget / double(result.payload.size());
-      engine.Resize(count - std::max<std::size_t>(1, std::size_t(std::ceil(excess * double(count)))));
-      ++result.adjustments;
-      encode();
+      resize(count - std::max<std::size_t>(1, std::size_t(std::ceil(excess * double(count)))));
     }
   };
   fit();
-  if (progress)
-    progress(FirstFitProgress);
 
   if (stepMultiples.size() > 1)
   {
@@ -166,10 +277,13 @@ ApproximateToBudget(RefinementEngine & engine, std::size_t payloadBytes, double 
     auto         predicted = [&] { return states.back().second * std::pow(states.back().first / target, b); };
     double       bestMultiple = 1.0, bestError = predicted(), current = 1.0;
     // The mesh is solved (fit() ends so): SetQuantizationStep quantizes the solution again.
+    stepsToCome = false;
     auto requantize = [&](double m) {
       engine.SetQuantizationStep(m * step);
       current = m;
       encode();
+      fitted.assign(1, { double(engine.GetNumberOfPoints()), double(result.payload.size()) });
+      shown.Done(StepTrialWork * fitted.back().first, workLeft(fitted, false));
     };
     for (double m : stepMultiples)
     {

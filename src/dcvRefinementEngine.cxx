@@ -1046,7 +1046,7 @@ RefinementEngine::Decimate(std::size_t count)
 }
 
 void
-RefinementEngine::Resize(std::size_t numberOfPoints)
+RefinementEngine::Resize(std::size_t numberOfPoints, const ProgressFunction & progress)
 {
   const std::size_t n = GetNumberOfPoints();
   numberOfPoints = std::max<std::size_t>(numberOfPoints, NumberOfCorners);
@@ -1057,10 +1057,12 @@ RefinementEngine::Resize(std::size_t numberOfPoints)
   if (numberOfPoints < n)
   {
     Decimate(n - numberOfPoints);
+    if (progress)
+      progress(1.0);
   }
   else
   {
-    Refine(numberOfPoints);
+    Refine(numberOfPoints, progress);
   }
   if (m_Impl->parameters.leastSquares)
   {

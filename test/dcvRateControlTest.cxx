@@ -1,0 +1,97 @@
+/*=========================================================================
+ *
+ *  Copyright NumFOCUS
+ *
+ *  Licensed under the Apache License, Version 2.0 (the "License");
+ *  you may not use this file except in compliance with the License.
+ *  You may obtain a copy of the License at
+ *
+ *         http://www.apache.org/licenses/LICENSE-2.0.txt
+ *
+ *  Unless required by applicable law or agreed to in writing, software
+ *  distributed under the License is distributed on an "AS IS" BASIS,
+ *  WITHOUT WARRANTIES OR CONDITIONS OF ANY KIND, either express or implied.
+ *  See the License for the specific language governing permissions and
+ *  limitations under the License.
+ *
+ *=========================================================================*/
+// Rate control: the size law that predicts the final count, and the progress it reports.
+#include "dcvPhantom.h"
+#include "dcvRateControl.h"
+
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <stdexcept>
+
+namespace
+{
+using namespace dcv;
+
+TEST(RateControl, FittedCountFollowsTheLawBetweenTheLastTwoStates)
+{
+  // size = 1000 (count / 100)^0.6 through both states: the count of 2000 bytes is 100 x 2^(1 / 0.6).
+  const double a = 1000.0 * std::pow(3.0, 0.6);
+  EXPECT_NEAR(FittedCount({ { 50.0, 1.0 }, { 100.0, 1000.0 }, { 300.0, a } }, 1e6, 2000.0) /
+                (100.0 * std::pow(2.0, 1.0 / 0.6)),
+              1.0,
+              1e-9)
+    << "the law is measured between the last two states, not with the first";
+  // Equal counts say nothing of the law: the one before them is used.
+  EXPECT_NEAR(FittedCount({ { 100.0, 1000.0 }, { 300.0, a }, { 300.0, a } }, 1e6, 2000.0) /
+                (100.0 * std::pow(2.0, 1.0 / 0.6)),
+              1.0,
+              1e-9);
+}
+
+TEST(RateControl, FittedCountFromOneStateIsTheLawOfASubset)
+{
+  // 10 bits a point: the local exponent of n (log2(V / n) + c) is 1 - 1 / (10 ln 2).
+  const double beta = 1.0 - 1.0 / (10.0 * std::log(2.0));
+  EXPECT_NEAR(FittedCount({ { 800.0, 1000.0 } }, 1e6, 1500.0), 800.0 * std::pow(1.5, 1.0 / beta), 1e-6);
+  // Further than a step of the old correction (one bits-per-point): 800 x 1.5 = 1200.
+  EXPECT_GT(FittedCount({ { 800.0, 1000.0 } }, 1e6, 1500.0), 1200.0);
+  // Smaller targets give fewer points; the count stays within 8 and the voxels.
+  EXPECT_LT(FittedCount({ { 800.0, 1000.0 } }, 1e6, 500.0), 800.0);
+  EXPECT_EQ(FittedCount({ { 800.0, 1000.0 } }, 1000.0, 1e9), 1000.0);
+  EXPECT_EQ(FittedCount({ { 800.0, 1000.0 } }, 1e6, 1e-9), 8.0);
+  EXPECT_THROW(FittedCount({}, 1e6, 1000.0), std::invalid_argument);
+  EXPECT_THROW(FittedCount({ { 0.0, 1000.0 } }, 1e6, 1000.0), std::invalid_argument);
+}
+
+TEST(RateControl, ProgressMovesAtEveryCorrectionAndNeverFalls)
+{
+  // A budget the first count misses (the first count is chosen low): rate control corrects it, and the
+  // progress shown moves with each correction, not only at the end of a fit.
+  const GridSize           grid{ 48, 44, 40 };
+  const auto               bytes = SheppLoganPhantom(grid);
+  const std::vector<float> image(bytes.begin(), bytes.end());
+  RefinementParameters     p = ParametersForMode(Mode::Best);
+  p.peak = 255.0;
+  p.quantizationStep = DefaultQuantizationStep(255.0, true);
+  p.valueMin = 0.0;
+  p.valueMax = 255.0;
+  RefinementEngine         engine(image.data(), grid, p);
+  std::vector<double>      shown;
+  std::vector<std::size_t> counts; // the engine's point count at each value shown
+  const BudgetResult       r = ApproximateToBudget(engine, 3000, 0.0, RateControl::StepMultiples(), [&](double f) {
+    shown.push_back(f);
+    counts.push_back(engine.GetNumberOfPoints());
+  });
+  ASSERT_GE(r.adjustments, 2u) << "the test needs a budget that takes corrections";
+  ASSERT_FALSE(shown.empty());
+  EXPECT_EQ(shown.back(), 1.0);
+  for (std::size_t i = 1; i < shown.size(); ++i)
+  {
+    EXPECT_LE(shown[i - 1], shown[i]) << "progress falls at value " << i;
+  }
+  // Values shown after the first run (the count has left the first count): one at least per correction.
+  std::size_t afterFirstRun = 0;
+  for (std::size_t i = 0; i < shown.size(); ++i)
+  {
+    afterFirstRun += counts[i] != r.firstCount && shown[i] < 1.0 ? 1 : 0;
+  }
+  EXPECT_GE(afterFirstRun, r.adjustments);
+}
+
+} // namespace
