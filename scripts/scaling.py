@@ -1,0 +1,137 @@
+#!/usr/bin/env python3
+"""How the encoder's time and memory grow with the volume: `dcv compress --bpv R` on three sizes of brain
+MR, with what a 512 x 512 x 1000 series would need by the law between the two largest.
+
+Usage: /usr/bin/python3 scripts/scaling.py [--rates 0.03125 0.125] [--work DIR]
+
+The sizes: flair-mr (2.8 M voxels) and norm-256 (16.8 M) from ../shared/data, and norm-256 resampled
+linearly to 512 x 512 in-plane (67.1 M voxels, spacing 0.5 x 0.5 x 1 mm: thin pixels and 2x thicker
+slices, as in clinical CT), written to the work directory (default a temporary one). One process per
+run, timed from outside (/usr/bin/time: wall seconds and the peak resident memory). Prints a Markdown table
+(build output on stderr), with the peak against the encoder's memory model (dcv::EncodingMemory, which
+`dcv compress` checks before it starts; a peak above it is reported on stderr). Needs python3-numpy (Debian's /usr/bin/python3); exits 0 with a message when
+../shared/data is absent. Takes about 5 minutes on 2 cores.
+"""
+import argparse
+import gzip
+import math
+import os
+import re
+import subprocess
+import sys
+import tempfile
+
+import numpy as np
+
+ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
+DATA = os.path.join(ROOT, "..", "shared", "data")
+DCV = os.path.join(ROOT, "build", "tools", "dcv", "dcv")
+
+
+def read_nrrd(path):
+    """The voxels (z, y, x) and the header fields of a gzip or raw NRRD of uint8 voxels."""
+    with open(path, "rb") as f:
+        data = f.read()
+    end = data.index(b"\n\n")
+    fields = dict(line.split(": ", 1) for line in data[:end].decode().splitlines()[1:] if ": " in line)
+    if fields.get("type") not in ("uint8", "unsigned char", "uchar"):
+        raise SystemExit(f"scaling.py: {path}: uint8 voxels expected, got {fields.get('type')}")
+    raw = data[end + 2:]
+    if fields.get("encoding") == "gzip":
+        raw = gzip.decompress(raw)
+    x, y, z = (int(v) for v in fields["sizes"].split())
+    return np.frombuffer(raw, dtype=np.uint8).reshape(z, y, x), fields
+
+
+def upsample_in_plane(volume):
+    """Linear interpolation to twice the rows and columns (the voxel centres of the finer grid)."""
+    def axis(v, along):
+        n = v.shape[along]
+        at = (np.arange(2 * n) + 0.5) / 2.0 - 0.5
+        lo = np.clip(np.floor(at).astype(int), 0, n - 1)
+        hi = np.clip(lo + 1, 0, n - 1)
+        w = np.clip(at - lo, 0.0, 1.0)
+        shape = [1] * v.ndim
+        shape[along] = 2 * n
+        w = w.reshape(shape)
+        return np.take(v, lo, axis=along) * (1.0 - w) + np.take(v, hi, axis=along) * w
+
+    out = axis(axis(volume.astype(np.float32), 2), 1)
+    return np.clip(np.rint(out), 0, 255).astype(np.uint8)
+
+
+def write_nrrd(path, volume, spacing):
+    z, y, x = volume.shape
+    header = (f"NRRD0004\ntype: uint8\ndimension: 3\nsizes: {x} {y} {z}\n"
+              f"spacings: {spacing[0]} {spacing[1]} {spacing[2]}\nencoding: raw\nendian: little\n\n")
+    with open(path, "wb") as f:
+        f.write(header.encode())
+        f.write(volume.tobytes())
+
+
+def compress(volume, rate, out):
+    """(wall s, peak MiB, what won, PSNR dB) of one `dcv compress` run."""
+    timed = subprocess.run(["/usr/bin/time", "-f", "TIME %e %M", DCV, "compress", volume, out, "--bpv", str(rate),
+                            "--force"], capture_output=True, text=True)
+    if timed.returncode != 0:
+        raise SystemExit(f"scaling.py: dcv compress {volume} failed:\n{timed.stderr}")
+    wall, peak = re.search(r"TIME (\S+) (\d+)", timed.stderr).groups()
+    points = int(re.search(r"points: (\d+)", timed.stdout).group(1))
+    psnr = float(re.search(r"PSNR: (\S+) dB", timed.stdout).group(1))
+    return float(wall), int(peak) / 1024.0, "corners' layer" if points == 8 else f"{points} points", psnr
+
+
+def model(volume, rate, out):
+    """The encoder's memory model (dcv::EncodingMemory) in MiB, as dcv states it when refusing a job."""
+    refused = subprocess.run([DCV, "compress", volume, out, "--bpv", str(rate), "--max-memory", "1", "--force"],
+                             capture_output=True, text=True)
+    amount, unit = re.search(r"may need (\S+) (\S+),", refused.stderr).groups()
+    return float(amount) * {"bytes": 2.0 ** -20, "KiB": 2.0 ** -10, "MiB": 1.0, "GiB": 2.0 ** 10, "TiB": 2.0 ** 20}[unit]
+
+
+def main():
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--rates", nargs="+", type=float, default=[0.03125, 0.125])
+    parser.add_argument("--work", help="directory for the resampled volume and the .dcv files")
+    args = parser.parse_args()
+    if not os.path.isdir(DATA):
+        print(f"scaling.py: no data directory at {DATA}; nothing to measure", file=sys.stderr)
+        return 0
+    subprocess.run(["cmake", "--build", os.path.join(ROOT, "build"), "--target", "dcv"], check=True,
+                   stdout=sys.stderr)
+    work = args.work or tempfile.mkdtemp(prefix="dcv-scaling-")
+    os.makedirs(work, exist_ok=True)
+    norm, _ = read_nrrd(os.path.join(DATA, "norm-256.nrrd"))
+    large = os.path.join(work, "norm-512x512x256.nrrd")
+    write_nrrd(large, upsample_in_plane(norm), (0.5, 0.5, 1.0))
+    volumes = [("flair-mr", os.path.join(DATA, "flair-mr.nrrd"), 124 * 160 * 140),
+               ("norm-256", os.path.join(DATA, "norm-256.nrrd"), 256 ** 3),
+               ("norm-256 at 512 x 512 x 256", large, 512 * 512 * 256)]
+    print("| volume | Mvoxels | bpv | wall s | s per Mvoxel | peak MiB | bytes a voxel | model MiB | kept | PSNR dB |")
+    print("|---|---:|---:|---:|---:|---:|---:|---:|---|---:|")
+    runs = {}
+    for rate in args.rates:
+        for name, path, voxels in volumes:
+            wall, peak, kept, psnr = compress(path, rate, os.path.join(work, "out.dcv"))
+            runs[(name, rate)] = (voxels, wall, peak)
+            bound = model(path, rate, os.path.join(work, "out.dcv"))
+            print(f"| {name} | {voxels / 1e6:.1f} | {rate:g} | {wall:.1f} | {wall / (voxels / 1e6):.2f} | "
+                  f"{peak:.0f} | {peak * 1048576 / voxels:.1f} | {bound:.0f} | {kept} | {psnr:.2f} |", flush=True)
+            if peak > bound:
+                print(f"scaling.py: {name} at {rate:g} bpv peaked at {peak:.0f} MiB, above the memory model's "
+                      f"{bound:.0f}", file=sys.stderr)
+    # 512 x 512 x 1000 by the law between the two largest sizes: time ~ voxels^a; memory linear in them.
+    target = 512 * 512 * 1000
+    print(f"\n512 x 512 x 1000 ({target / 1e6:.0f} M voxels), from the two largest sizes:")
+    for rate in args.rates:
+        (v1, t1, m1), (v2, t2, m2) = runs[(volumes[1][0], rate)], runs[(volumes[2][0], rate)]
+        a = math.log(t2 / t1) / math.log(v2 / v1)
+        per_voxel = (m2 - m1) / (v2 - v1)
+        print(f"- {rate:g} bpv: time ~ voxels^{a:.2f}: about {t2 * (target / v2) ** a / 60:.0f} minutes; memory "
+              f"{per_voxel * 1048576:.1f} bytes a voxel beyond the smaller: about "
+              f"{(m2 + per_voxel * (target - v2)) / 1024:.1f} GiB")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
