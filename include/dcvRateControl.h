@@ -76,6 +76,13 @@ constexpr double AbandonAfterRefinement = 2.5;
  * the points leave to a residual layer (+0.3 dB at most). */
 constexpr double AbandonNearTarget = 0.9;
 constexpr double AbandonAfterFirstRun = 1.2;
+/** ... and after the step trials, where the best step's error predicted at the target size is within
+ * 4.3% of the final one on every dev run that went on (the second fit and the points' own residual
+ * layer gained at most that: ct-avm at 0.125 bpv, 0.4446 -> 0.4265 of the competitor's error; they lost
+ * up to 2.4% as well), and every run that stood above this ratio there ended with the competitor
+ * (docs/profile.md, session of 12-04 evening: norm-256 at 0.03125 to 0.125 bpv, head-mr, flair-mr, ...).
+ * What it spares is the second fit and the points' layer trial: norm-256 at 0.03125 bpv 1.5 s of 8.4. */
+constexpr double AbandonAfterSteps = 1.06;
 /** The steps tried, as multiples of DefaultQuantizationStep (measured at 0.03125 to 0.25 bpv on
  * ../shared/data: each of the three wins somewhere). */
 inline const std::vector<double> &

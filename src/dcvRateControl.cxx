@@ -297,6 +297,12 @@ ApproximateToBudget(RefinementEngine & engine, std::size_t payloadBytes, double 
         }
       }
     }
+    if (bestError / AbandonAfterSteps > competitorError)
+    {
+      result.abandoned = true;
+      result.payload.clear();
+      return result;
+    }
     if (bestMultiple != current)
     {
       requantize(bestMultiple);

@@ -22,6 +22,7 @@
 #include <gtest/gtest.h>
 
 #include <cmath>
+#include <memory>
 #include <stdexcept>
 
 namespace
@@ -57,6 +58,62 @@ TEST(RateControl, FittedCountFromOneStateIsTheLawOfASubset)
   EXPECT_EQ(FittedCount({ { 800.0, 1000.0 } }, 1e6, 1e-9), 8.0);
   EXPECT_THROW(FittedCount({}, 1e6, 1000.0), std::invalid_argument);
   EXPECT_THROW(FittedCount({ { 0.0, 1000.0 } }, 1e6, 1000.0), std::invalid_argument);
+}
+
+/** The engine of the rate-control tests: mode best on a Shepp-Logan phantom, 8-bit steps. */
+struct PhantomEngine
+{
+  explicit PhantomEngine(const GridSize & grid)
+    : bytes(SheppLoganPhantom(grid))
+    , image(bytes.begin(), bytes.end())
+  {
+    RefinementParameters p = ParametersForMode(Mode::Best);
+    p.peak = 255.0;
+    p.quantizationStep = DefaultQuantizationStep(255.0, true);
+    p.valueMin = 0.0;
+    p.valueMax = 255.0;
+    engine = std::make_unique<RefinementEngine>(image.data(), grid, p);
+  }
+  std::vector<uint8_t>              bytes;
+  std::vector<float>                image;
+  std::unique_ptr<RefinementEngine> engine;
+};
+
+TEST(RateControl, PointsAbandonedAfterTheStepTrialsWhenTheCompetitorIsAhead)
+{
+  // A budget the first run misses by far (9 corrections in all): the check after the first run does not
+  // apply, and the one after the step trials decides.
+  const GridSize   grid{ 48, 44, 40 };
+  constexpr size_t budget = 12000;
+  double           final = 0.0; // the points' error when they run to the end
+  unsigned         corrections = 0;
+  {
+    PhantomEngine      e(grid);
+    const BudgetResult r = ApproximateToBudget(*e.engine, budget, 0.0, RateControl::StepMultiples());
+    ASSERT_FALSE(r.abandoned);
+    final = e.engine->GetSquaredError();
+    corrections = r.adjustments;
+  }
+  // A competitor 10% closer than the points' final error: the step trials' prediction stands above it
+  // by more than AbandonAfterSteps, after the first fit and before the second.
+  {
+    PhantomEngine      e(grid);
+    const BudgetResult r =
+      ApproximateToBudget(*e.engine, budget, 0.0, RateControl::StepMultiples(), {}, [&] { return 0.9 * final; });
+    EXPECT_TRUE(r.abandoned);
+    EXPECT_TRUE(r.payload.empty());
+    EXPECT_GT(r.adjustments, 0u) << "abandoned before the first fit: the test no longer reaches the step trials";
+    EXPECT_LT(r.adjustments, corrections) << "the second fit ran";
+  }
+  // A competitor as close as the points: they go on to the end, with the same result as without one.
+  {
+    PhantomEngine      e(grid);
+    const BudgetResult r =
+      ApproximateToBudget(*e.engine, budget, 0.0, RateControl::StepMultiples(), {}, [&] { return final; });
+    EXPECT_FALSE(r.abandoned);
+    EXPECT_EQ(r.adjustments, corrections);
+    EXPECT_EQ(e.engine->GetSquaredError(), final);
+  }
 }
 
 TEST(RateControl, ProgressMovesAtEveryCorrectionAndNeverFalls)
