@@ -142,7 +142,9 @@ struct BudgetResult
  * another coding reaches in the same bytes (asked for once, after the first refinement, so that it can
  * be computed meanwhile on another thread; none: infinity); the points are abandoned (BudgetResult::abandoned, no
  * payload, the engine left as it is) as soon as an optimistic estimate of theirs stays above it (see
- * AbandonAfterRefinement).
+ * AbandonAfterRefinement). `competitorReady`, where given, says whether `competitor` would answer at once:
+ * while it would not, the method goes on and is stopped where the check on the first refinement, made
+ * when it answers, abandons the points (the same decision as waiting for it).
  *
  * Point count: the coded size is nearly proportional to the count, at a number of bits per point that
  * grows slowly as points get sparser. So the method runs once, with a count predicted by
@@ -157,7 +159,8 @@ DelaunayCompression_EXPORT BudgetResult
 ApproximateToBudget(RefinementEngine & engine, std::size_t payloadBytes, double q0,
                     const std::vector<double> &                stepMultiples = { 1.0 },
                     const RefinementEngine::ProgressFunction & progress = RefinementEngine::ProgressFunction(),
-                    const std::function<double()> &            competitor = {});
+                    const std::function<double()> &            competitor = {},
+                    const std::function<bool()> &              competitorReady = {});
 
 /** The squared error a decoder's image will have for the engine's current approximation. */
 using DecodedErrorFunction = std::function<double(const RefinementEngine &)>;

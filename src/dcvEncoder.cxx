@@ -512,12 +512,16 @@ Run(const EncoderInput & input, const EncoderOptions & o, bool coded, std::vecto
   {
     try
     {
-      BudgetResult b = ApproximateToBudget(engine,
-                                           std::size_t(std::max(0.0, fileBytes - headerBytes)),
-                                           parameters.quantizationOrigin,
-                                           automaticStep ? RateControl::StepMultiples() : std::vector<double>{ 1.0 },
-                                           o.progress,
-                                           [&] { return cornersDone().Error(); });
+      BudgetResult b = ApproximateToBudget(
+        engine,
+        std::size_t(std::max(0.0, fileBytes - headerBytes)),
+        parameters.quantizationOrigin,
+        automaticStep ? RateControl::StepMultiples() : std::vector<double>{ 1.0 },
+        o.progress,
+        [&] { return cornersDone().Error(); },
+        [&] {
+          return !cornersLater.valid() || cornersLater.wait_for(std::chrono::seconds(0)) == std::future_status::ready;
+        });
       r.quantizationStep = b.step;
       r.adjustments = b.adjustments;
       payload = std::move(b.payload);

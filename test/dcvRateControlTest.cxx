@@ -116,6 +116,53 @@ TEST(RateControl, PointsAbandonedAfterTheStepTrialsWhenTheCompetitorIsAhead)
   }
 }
 
+TEST(RateControl, ACompetitorNotReadyIsNotWaitedForAndDecidesTheSame)
+{
+  // The check after the first refinement, made when the competitor answers (here after a few polls of
+  // the schedule), decides as the one that waits for it: abandoned where that abandons, and where it
+  // does not, the same run to the end.
+  const GridSize grid{ 48, 44, 40 };
+  double         final = 0.0;
+  {
+    PhantomEngine e(grid);
+    ASSERT_FALSE(ApproximateToBudget(*e.engine, 3000, 0.0, RateControl::StepMultiples()).abandoned);
+    final = e.engine->GetSquaredError();
+  }
+  for (const double factor : { 0.2, 1.0 })
+  {
+    bool waited = false;
+    {
+      PhantomEngine e(grid);
+      waited = ApproximateToBudget(*e.engine, 3000, 0.0, RateControl::StepMultiples(), {}, [&] {
+                 return factor * final;
+               }).abandoned;
+    }
+    ASSERT_EQ(waited, factor < 1.0) << "the test needs a competitor that abandons the points and one that does not";
+    PhantomEngine      e(grid);
+    int                polls = 0;
+    bool               askedEarly = false;
+    const BudgetResult r = ApproximateToBudget(
+      *e.engine,
+      3000,
+      0.0,
+      RateControl::StepMultiples(),
+      {},
+      [&] {
+        askedEarly = askedEarly || polls < 4;
+        return factor * final;
+      },
+      [&] { return ++polls > 4; });
+    EXPECT_FALSE(askedEarly) << "the competitor was asked for before it was ready";
+    EXPECT_GT(polls, 4) << "factor " << factor;
+    EXPECT_EQ(r.abandoned, waited) << "factor " << factor;
+    EXPECT_EQ(r.payload.empty(), r.abandoned);
+    if (!r.abandoned)
+    {
+      EXPECT_EQ(e.engine->GetSquaredError(), final);
+    }
+  }
+}
+
 TEST(RateControl, ProgressMovesAtEveryCorrectionAndNeverFalls)
 {
   // A budget the first count misses (the first count is chosen low): rate control corrects it, and the
