@@ -148,7 +148,9 @@ ApproximateToBudget(RefinementEngine & engine, std::size_t payloadBytes, double 
   auto         workLeft = [&](const std::vector<std::pair<double, double>> & fitted, bool stepsToCome) {
     const double count = fitted.empty() ? double(result.firstCount) : fitted.back().first;
     const double size = fitted.empty() ? TargetFill * budget : fitted.back().second;
-    const double final = fitted.empty() ? count : FittedCount(fitted, voxels, TargetFill * budget);
+    // (An estimate only: where the law has nothing to go on, an empty payload or budget, the count stays.)
+    const bool   law = !fitted.empty() && count > 0.0 && size > 0.0 && budget > 0.0;
+    const double final = law ? FittedCount(fitted, voxels, TargetFill * budget) : count;
     double       work = 0.0;
     if (!(size <= budget && size >= MinimumFill * budget))
     {
