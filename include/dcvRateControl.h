@@ -139,12 +139,14 @@ struct BudgetResult
 
 /** Approximates with the payload of best quality that fits `payloadBytes` (at least MinimumFill of it
  * unless the approximation becomes exact first), running the method once. `competitor`: the squared error
- * another coding reaches in the same bytes (asked for once, after the first refinement, so that it can
- * be computed meanwhile on another thread; none: infinity); the points are abandoned (BudgetResult::abandoned, no
- * payload, the engine left as it is) as soon as an optimistic estimate of theirs stays above it (see
- * AbandonAfterRefinement). `competitorReady`, where given, says whether `competitor` would answer at once:
- * while it would not, the method goes on and is stopped where the check on the first refinement, made
- * when it answers, abandons the points (the same decision as waiting for it).
+ * another coding reaches in the same bytes (asked for once, from the end of the first refinement on, so
+ * that it can be computed meanwhile on another thread; none: infinity); the points are abandoned
+ * (BudgetResult::abandoned, no payload, the engine left where it was stopped, possibly inside the
+ * schedule) as soon as an optimistic estimate of theirs stays above it (AbandonAfterRefinement,
+ * AbandonAfterFirstRun, AbandonAfterSteps). `competitorReady`, where given, says whether `competitor`
+ * would answer at once: while it would not, the method goes on, and the check on the first refinement's
+ * state is made when it would, at a progress report of the schedule's refinements or after the
+ * schedule (the same decision as waiting for it).
  *
  * Point count: the coded size is nearly proportional to the count, at a number of bits per point that
  * grows slowly as points get sparser. So the method runs once, with a count predicted by

@@ -151,7 +151,7 @@ public:
   /** Brings the point count to `numberOfPoints` on the current tetrahedralization: Decimate() when
    * there are more, Refine() when fewer, then least-squares values again when they are on. Rate
    * control uses it to adjust a finished approximation instead of running the method again. `progress`
-   * follows the insertions or removals (not the solve). */
+   * follows the insertions (removals report 1 when done; the solve is not counted). */
   void
   Resize(std::size_t numberOfPoints, const ProgressFunction & progress = ProgressFunction());
 

@@ -1,5 +1,5 @@
 #!/usr/bin/env bash
-# CI's second build (.ci/run, after scripts/test.sh): the test suite (all but four heavy tests, below) built
+# CI's second build (.ci/run, after scripts/test.sh): the test suite (all but three heavy tests, below) built
 # with AddressSanitizer (and LeakSanitizer) and UndefinedBehaviorSanitizer (gcc; line tables, any undefined
 # behaviour fatal; the library and tools/common at -O1, the programs and tests, ITK glue, at -O0: they
 # compile faster) in build-asan/, run
@@ -30,15 +30,13 @@ supp="$PWD/test/sanitizers"
 export ASAN_OPTIONS="halt_on_error=1:abort_on_error=1:detect_leaks=1:check_initialization_order=1:strict_init_order=1:detect_stack_use_after_return=1:log_path=$reports/asan"
 export UBSAN_OPTIONS="halt_on_error=1:abort_on_error=1:print_stacktrace=1:log_path=$reports/ubsan:suppressions=$supp/ubsan.supp"
 export LSAN_OPTIONS="suppressions=$supp/lsan.supp:print_suppressions=0"
-# Not run here, for time: four tests that check a result's quality or agreement on real data, or a rate
-# control run to the end three times, each with a cheaper test of the same code paths that does run (in
-# parentheses). The first three were 155 of the 837 CPU-seconds of this step; scripts/test.sh runs them
-# in Release.
+# Not run here, for time: three tests that check a result's quality or agreement on real data, each with a
+# cheaper test of the same code paths that does run (in parentheses). They were 155 of the 837 CPU-seconds
+# of this step; scripts/test.sh runs them in Release.
 heavy=(
   'Encoder.MeetsAPSNRTargetWithFewPoints'                 # (CommandLine.CompressToAPSNRTarget)
   'DCVImageIO.ImageFileWriterWritesWhatTheToolWrites'     # (DCVImageIO.ImageFileWriterWritesRealCTAsTheToolDoes)
   'PositionCoder.RealPointSetsCostLessThanRandomOnes'     # (PositionCoder.RandomSetsOfManyDensities)
-  'RateControl.PointsAbandonedAfterTheStepTrialsWhenTheCompetitorIsAhead' # (RateControl.ProgressMovesAtEveryCorrectionAndNeverFalls)
 )
 exclude="^($(IFS='|'; echo "${heavy[*]}"))\$"
 test_start=$SECONDS

@@ -487,9 +487,9 @@ Run(const EncoderInput & input, const EncoderOptions & o, bool coded, std::vecto
   const bool       layers = coded && o.bitsPerVoxel > 0.0 && o.residualLayer;
   CornersCandidate corners;
   bool             pointsAbandoned = false;
-  // The corners' layer is coded on a thread of its own while the points' first refinement runs (mostly
-  // on one thread); rate control waits for it at its first check. Neither depends on the other, so the
-  // file is the same as if they ran one after the other.
+  // The corners' layer is coded on a thread of its own while the points' first refinement and schedule
+  // run (mostly on one thread); rate control asks for it once it is done. Neither depends on the other,
+  // so the file is the same as if they ran one after the other.
   std::future<CornersCandidate> cornersLater;
   if (layers)
   {
@@ -518,7 +518,7 @@ Run(const EncoderInput & input, const EncoderOptions & o, bool coded, std::vecto
         parameters.quantizationOrigin,
         automaticStep ? RateControl::StepMultiples() : std::vector<double>{ 1.0 },
         o.progress,
-        [&] { return cornersDone().Error(); },
+        layers ? std::function<double()>([&] { return cornersDone().Error(); }) : std::function<double()>(),
         [&] {
           return !cornersLater.valid() || cornersLater.wait_for(std::chrono::seconds(0)) == std::future_status::ready;
         });

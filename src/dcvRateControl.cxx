@@ -87,7 +87,8 @@ private:
   void
   Show(double done, double left)
   {
-    const double f = std::clamp(done / std::max(1.0, done + left), 0.0, 1.0);
+    // Short of 1 until the end (progress(1.0)): the estimate may see nothing left before the last step.
+    const double f = std::clamp(done / std::max(1.0, done + left), 0.0, 0.99);
     if (m_Report && f > m_Shown)
     {
       m_Shown = f;
@@ -178,6 +179,7 @@ ApproximateToBudget(RefinementEngine & engine, std::size_t payloadBytes, double 
   // The check on the refinement's state, made as soon as the competitor is ready: a competitor still in
   // the making is not waited for, the schedule goes on meanwhile and stops where the check abandons the
   // points (the same decision as if it had waited; norm-256 at 0.03125 bpv waited 0.2 to 0.26 s here).
+  // The schedule's refinements ask at each progress report, its decimations not at all.
   double       competitorError = std::numeric_limits<double>::infinity();
   bool         checked = !competitor;
   const double refinedError = engine.GetSquaredError();
@@ -188,12 +190,19 @@ ApproximateToBudget(RefinementEngine & engine, std::size_t payloadBytes, double 
     return std::isfinite(competitorError) &&
            carried(refinedError, refinedSize) / AbandonAfterRefinement > competitorError;
   };
-  if (competitor)
+  const bool ready = competitor && (!competitorReady || competitorReady());
+  if (ready)
+  {
+    checked = true;
+    competitorError = competitor();
+  }
+  // The refinement's size only where a competitor may be compared with it (an encode of the first count).
+  if (!checked || std::isfinite(competitorError))
   {
     refinedSize =
       double(EncodePayload(engine.GetApproximation(), q0, engine.GetParameters().quantizationStep, true).size());
     afterFirstRun = workLeft({ { first, refinedSize } }, true); // the law's final count, not the first
-    if ((!competitorReady || competitorReady()) && abandonsRefined())
+    if (checked && carried(refinedError, refinedSize) / AbandonAfterRefinement > competitorError)
     {
       result.abandoned = true;
       return result;
