@@ -145,8 +145,8 @@ struct BudgetResult
  * schedule) as soon as an optimistic estimate of theirs stays above it (AbandonAfterRefinement,
  * AbandonAfterFirstRun, AbandonAfterSteps). `competitorReady`, where given, says whether `competitor`
  * would answer at once: while it would not, the method goes on, and the check on the first refinement's
- * state is made when it would, at a progress report of the schedule's refinements or after the
- * schedule (the same decision as waiting for it).
+ * state is made when it would, at a progress report of the schedule or after it (the same decision
+ * as waiting for it).
  *
  * Point count: the coded size is nearly proportional to the count, at a number of bits per point that
  * grows slowly as points get sparser. So the method runs once, with a count predicted by

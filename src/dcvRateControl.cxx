@@ -162,13 +162,10 @@ ApproximateToBudget(RefinementEngine & engine, std::size_t payloadBytes, double 
       work += (trials + 1.0) * StepTrialWork * final + CorrectionWork * final;
     return work;
   };
-  // The first run: the refinement, the schedule of removals and insertions back (k = n/2, n/4, ...),
-  // a solve and an encode.
-  const double first = double(result.firstCount);
-  double       removals = 0.0;
-  for (std::size_t k = result.firstCount / 2; decimates && k > 0; k /= 2)
-    removals += double(k);
-  const double   schedule = (RemovalWork + 1.0) * removals;
+  // The first run: the refinement, the schedule of removals and insertions back (k = n/2, n/4, ...:
+  // about n of each), a solve and an encode.
+  const double   first = double(result.firstCount);
+  const double   schedule = decimates ? (RemovalWork + 1.0) * first : 0.0;
   BudgetProgress shown(progress);
   double         afterFirstRun = workLeft({}, true);
   // The refinement alone first: where even its error, carried to the target size and lowered by the
@@ -179,36 +176,35 @@ ApproximateToBudget(RefinementEngine & engine, std::size_t payloadBytes, double 
   // The check on the refinement's state, made as soon as the competitor is ready: a competitor still in
   // the making is not waited for, the schedule goes on meanwhile and stops where the check abandons the
   // points (the same decision as if it had waited; norm-256 at 0.03125 bpv waited 0.2 to 0.26 s here).
-  // The schedule's refinements ask at each progress report, its decimations not at all.
-  double       competitorError = std::numeric_limits<double>::infinity();
-  bool         checked = !competitor;
+  // The schedule asks at each of its progress reports (every 1% of a refinement, the end of a decimation).
+  double competitorError = std::numeric_limits<double>::infinity();
+  bool   checked = !competitor;
+  auto   ask = [&] {
+    checked = true;
+    competitorError = competitor();
+  };
   const double refinedError = engine.GetSquaredError();
   double       refinedSize = 0.0;
-  auto         abandonsRefined = [&] {
-    checked = true;
-    competitorError = competitor();
-    return std::isfinite(competitorError) &&
-           carried(refinedError, refinedSize) / AbandonAfterRefinement > competitorError;
+  auto         abandonsRefined = [&] { // false against an infinite error
+    return carried(refinedError, refinedSize) / AbandonAfterRefinement > competitorError;
   };
-  const bool ready = competitor && (!competitorReady || competitorReady());
-  if (ready)
-  {
-    checked = true;
-    competitorError = competitor();
-  }
+  auto abandon = [&] {
+    result.abandoned = true;
+    result.payload.clear();
+    return result;
+  };
+  if (competitor && (!competitorReady || competitorReady()))
+    ask();
   // The refinement's size only where a competitor may be compared with it (an encode of the first count).
   if (!checked || std::isfinite(competitorError))
   {
     refinedSize =
       double(EncodePayload(engine.GetApproximation(), q0, engine.GetParameters().quantizationStep, true).size());
     afterFirstRun = workLeft({ { first, refinedSize } }, true); // the law's final count, not the first
-    if (checked && carried(refinedError, refinedSize) / AbandonAfterRefinement > competitorError)
-    {
-      result.abandoned = true;
-      return result;
-    }
+    if (checked && abandonsRefined())
+      return abandon();
   }
-  // Approximate() reports its (done) refinement as the first part of its operations: only the rest counts.
+  // Approximate() has only its schedule left to report (the refinement is done).
   const RefinementEngine::ProgressFunction scheduleShown =
     shown.Stage(schedule, CorrectionWork * first + afterFirstRun);
   struct Abandoned
@@ -216,21 +212,25 @@ ApproximateToBudget(RefinementEngine & engine, std::size_t payloadBytes, double 
   try
   {
     engine.Approximate(result.firstCount, [&](double f) {
-      if (scheduleShown && removals > 0.0)
-        scheduleShown(std::clamp((f * (first + 2.0 * removals) - first) / (2.0 * removals), 0.0, 1.0));
-      if (!checked && competitorReady() && abandonsRefined())
-        throw Abandoned{};
+      if (scheduleShown)
+        scheduleShown(f);
+      if (!checked && competitorReady())
+      {
+        ask();
+        if (abandonsRefined())
+          throw Abandoned{};
+      }
     });
   }
   catch (const Abandoned &)
   {
-    result.abandoned = true; // the engine stopped inside its schedule
-    return result;
+    return abandon(); // the engine stopped inside its schedule
   }
-  if (!checked && abandonsRefined())
+  if (!checked)
   {
-    result.abandoned = true;
-    return result;
+    ask();
+    if (abandonsRefined())
+      return abandon();
   }
   encode();
   // (count, size) of the states of the current step: what the work left is estimated from.
@@ -241,9 +241,7 @@ ApproximateToBudget(RefinementEngine & engine, std::size_t payloadBytes, double 
   if (double(result.payload.size()) >= AbandonNearTarget * TargetFill * budget &&
       carried(engine.GetSquaredError(), double(result.payload.size())) / AbandonAfterFirstRun > competitorError)
   {
-    result.abandoned = true;
-    result.payload.clear();
-    return result;
+    return abandon();
   }
   // Adjusts the point count until the payload fills MinimumFill to all of the budget. (Fitting the
   // count without solving for least-squares values at each step, and solving once at the end, was
@@ -339,9 +337,7 @@ ApproximateToBudget(RefinementEngine & engine, std::size_t payloadBytes, double 
     }
     if (bestError / AbandonAfterSteps > competitorError)
     {
-      result.abandoned = true;
-      result.payload.clear();
-      return result;
+      return abandon();
     }
     if (bestMultiple != current)
     {

@@ -927,8 +927,10 @@ void
 RefinementEngine::Approximate(std::size_t numberOfPoints, const ProgressFunction & progress)
 {
   Impl & d = *m_Impl;
-  // Work units: insertions and removals of the whole schedule, for the progress fraction.
-  std::size_t total = numberOfPoints;
+  // Work units: the insertions still to make and the removals and insertions of the schedule, for the
+  // progress fraction (a caller that refined first sees only the schedule's).
+  const std::size_t refinements = numberOfPoints > GetNumberOfPoints() ? numberOfPoints - GetNumberOfPoints() : 0;
+  std::size_t       total = refinements;
   if (d.parameters.decimation)
   {
     for (std::size_t k = numberOfPoints / 2; k > 0; k /= 2)
@@ -941,18 +943,19 @@ RefinementEngine::Approximate(std::size_t numberOfPoints, const ProgressFunction
     const std::size_t from = done;
     done += units;
     return progress ? ProgressFunction([&, from, units](double f) {
-      progress(std::min(1.0, (double(from) + f * double(units)) / double(total)));
+      progress(std::min(1.0, (double(from) + f * double(units)) / double(std::max<std::size_t>(1, total))));
     })
                            : ProgressFunction();
   };
-  Refine(numberOfPoints, part(numberOfPoints)); // nothing to do when Refine() reached the count first
+  Refine(numberOfPoints, part(refinements));
   if (d.parameters.decimation)
   {
     for (std::size_t k = numberOfPoints / 2; k > 0; k /= 2)
     {
       const std::size_t before = GetNumberOfPoints();
       Decimate(std::min(k, before > NumberOfCorners ? before - NumberOfCorners : 0));
-      part(k);
+      if (const ProgressFunction removed = part(k))
+        removed(1.0);
       Refine(before, part(k));
     }
   }
