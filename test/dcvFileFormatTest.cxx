@@ -156,10 +156,10 @@ TEST(FileFormat, AbsurdNumbersAreRefusedBeforeAllocating)
   auto       tooManyPoints = bytes;
   // numberOfPoints sits 8 bytes before the payload (after it: payload length).
   const std::size_t pointsAt = bytes.size() - 4 - 3 - 8;
-  tooManyPoints[pointsAt + 3] = 0x7f;
+  tooManyPoints.at(pointsAt + 3) = 0x7f;
   EXPECT_NE(ParseError(Reseal(tooManyPoints)).find("absurd point count"), std::string::npos);
   auto hugePayload = bytes;
-  hugePayload[pointsAt + 4 + 3] = 0x7f;
+  hugePayload.at(pointsAt + 4 + 3) = 0x7f;
   EXPECT_NE(ParseError(Reseal(hugePayload)).find("truncated (the payload is"), std::string::npos);
   auto flat = bytes;
   flat[8] = 1; // size x = 1
