@@ -419,9 +419,10 @@ def codec_j2k_mosaic(vol, path, budget, bpv, work, ctx):
             if key in tr.all:
                 return tr.all[key]
             out = os.path.join(work, f"o_{lossy97:d}_{key}.j2k")
-            t_enc = run(["opj_compress", "-i", pgm, "-o", out, "-r", f"{r:.6f}"] + opj_common(lossy97, nres))
+            command = ["opj_compress", "-i", pgm, "-o", out, "-r", f"{r:.6f}"] + opj_common(lossy97, nres)
+            t_enc = run(command)
             size = os.path.getsize(out)
-            res = dict(bytes=size, enc=t_enc, psnr=float("-inf"), dec=None,
+            res = dict(bytes=size, enc=t_enc, psnr=float("-inf"), dec=None, command=command,
                        setting=f"-r {r:.4f} {'-I (9/7)' if lossy97 else '5/3'} -n {nres}; mosaic {cols}x{rows} "
                                f"tiles = {W}x{H} px, empty tiles 0{depth_note(depth, shift)}")
             if size <= budget:
@@ -508,14 +509,14 @@ def codec_x265(vol, path, budget, bpv, work, ctx):
                 return tr.all[key]
             out = os.path.join(work, "out.hevc")
             recon = os.path.join(work, "recon.yuv")
-            t_enc = run(base + ["--ctu", str(ctu), "--crf", f"{crf:.4f}", "-o", out] +
-                        (["--recon", recon] if depth == 8 else []))
+            command = base + ["--ctu", str(ctu), "--crf", f"{crf:.4f}", "-o", out]
+            t_enc = run(command + (["--recon", recon] if depth == 8 else []))
             size = os.path.getsize(out)
             setting = f"--crf {crf:.3f} --ctu {ctu}"
             if (X, Y) != (x, y):
                 setting += f"; {X}x{Y} (padded from {x}x{y})"
             setting += depth_note(depth, shift)
-            res = dict(bytes=size, enc=t_enc, psnr=float("-inf"), dec=None, setting=setting)
+            res = dict(bytes=size, enc=t_enc, psnr=float("-inf"), dec=None, setting=setting, command=command)
             if size <= budget:
                 if depth == 8:
                     rec = np.fromfile(recon, dtype=np.uint8).reshape(z, Y, X)[:, :y, :x]
