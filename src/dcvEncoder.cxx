@@ -489,14 +489,17 @@ Run(const EncoderInput & input, const EncoderOptions & o, bool coded, std::vecto
   bool             pointsAbandoned = false;
   // The corners' layer is coded on a thread of its own while the points' first refinement and schedule
   // run (mostly on one thread); rate control asks for it once it is done. Neither depends on the other,
-  // so the file is the same as if they ran one after the other. Its thread gives way to the points' (the
-  // wall time's path) and takes what their parallel parts leave: norm-256 at 0.03125 bpv 3% faster, the
-  // 5 mm CT series at 0.125 bpv 10% (docs/profile.md, second session of 12-05).
+  // so the file is the same as if they ran one after the other. With more than one thread its thread
+  // gives way to the points' (the wall time's path) and takes what their parallel parts leave: norm-256
+  // at 0.03125 bpv 3% faster, the 5 mm CT series at 0.125 bpv 10% (docs/profile.md, second session of
+  // 12-05). With one (dcv batch --jobs 0 on every core) the points have no parallel part to feed, and a
+  // corners' layer given way would be asked for only after their whole schedule.
   std::future<CornersCandidate> cornersLater;
   if (layers)
   {
     cornersLater = std::async(std::launch::async, [&, header = r.header, threads = CurrentThreads()] {
-      GiveWayToOtherThreads(); // a thread of its own: std::launch::async
+      if (threads > 1)
+        GiveWayToOtherThreads(); // a thread of its own: std::launch::async
       return WithThreads(threads, [&] {
         const auto       start = std::chrono::steady_clock::now();
         CornersCandidate c =
