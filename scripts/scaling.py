@@ -15,7 +15,6 @@ include/dcvEncoder.h; a peak above it is reported on stderr). Needs python3-nump
 is absent. Takes about 5 minutes on 2 cores.
 """
 import argparse
-import gzip
 import math
 import os
 import re
@@ -25,24 +24,20 @@ import tempfile
 
 import numpy as np
 
+sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
+import rd_benchmark as rd  # noqa: E402  (the NRRD reader, shared)
+
 ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
 DATA = os.path.join(ROOT, "..", "shared", "data")
 DCV = os.path.join(ROOT, "build", "tools", "dcv", "dcv")
 
 
-def read_nrrd(path):
-    """The voxels (z, y, x) and the header fields of a gzip or raw NRRD of uint8 voxels."""
-    with open(path, "rb") as f:
-        data = f.read()
-    end = data.index(b"\n\n")
-    fields = dict(line.split(": ", 1) for line in data[:end].decode().splitlines()[1:] if ": " in line)
-    if fields.get("type") not in ("uint8", "unsigned char", "uchar"):
-        raise SystemExit(f"scaling.py: {path}: uint8 voxels expected, got {fields.get('type')}")
-    raw = data[end + 2:]
-    if fields.get("encoding") == "gzip":
-        raw = gzip.decompress(raw)
-    x, y, z = (int(v) for v in fields["sizes"].split())
-    return np.frombuffer(raw, dtype=np.uint8).reshape(z, y, x), fields
+def read_uint8(path):
+    """The voxels (z, y, x) of a NRRD of uint8 voxels (rd_benchmark's reader)."""
+    volume = rd.read_nrrd(path)
+    if volume.dtype != np.uint8:
+        raise SystemExit(f"scaling.py: {path}: uint8 voxels expected, got {volume.dtype}")
+    return volume
 
 
 def upsample_in_plane(volume):
@@ -125,8 +120,8 @@ def main():
 
 
 def measure(rates, work):
-    norm, _ = read_nrrd(os.path.join(DATA, "norm-256.nrrd"))
-    flair, _ = read_nrrd(os.path.join(DATA, "flair-mr.nrrd"))
+    norm = read_uint8(os.path.join(DATA, "norm-256.nrrd"))
+    flair = read_uint8(os.path.join(DATA, "flair-mr.nrrd"))
     large = upsample_in_plane(norm)
     path = os.path.join(work, "norm-512x512x256.nrrd")
     write_nrrd(path, large, (0.5, 0.5, 1.0))

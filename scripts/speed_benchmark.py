@@ -39,10 +39,10 @@ def timed(command, log):
     """(wall s, CPU s, peak MiB) of one run of `command`; its output goes to the file `log`. The peak is
     what /usr/bin/time reports of the command itself: a process forked from this one would count this
     one's memory (the volume) in its own peak."""
-    peakFile = log + ".peak"
+    peak_file = log + ".peak"
     with open(log, "wb") as out:
         start = time.perf_counter()
-        child = subprocess.Popen(["/usr/bin/time", "-f", "%M", "-o", peakFile] + command, stdin=subprocess.DEVNULL,
+        child = subprocess.Popen(["/usr/bin/time", "-f", "%M", "-o", peak_file] + command, stdin=subprocess.DEVNULL,
                                  stdout=out, stderr=subprocess.STDOUT)
         _, status, usage = os.wait4(child.pid, 0)
         wall = time.perf_counter() - start
@@ -51,7 +51,7 @@ def timed(command, log):
         with open(log, "rb") as f:
             raise SystemExit(f"speed_benchmark: {' '.join(command)} failed ({code}):\n"
                              f"{f.read().decode(errors='replace')[-800:]}")
-    with open(peakFile) as f:
+    with open(peak_file) as f:
         peak = float(f.read().split()[-1]) / 1024.0  # KiB
     return wall, usage.ru_utime + usage.ru_stime, peak
 
