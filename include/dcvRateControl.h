@@ -61,7 +61,7 @@ constexpr unsigned MaximumCorrections = 6;
  * StepTrialWork per point. A fit is expected to take 1 + CorrectionsPerOctave x |log2(final / current
  * count)| corrections (2 at 0.03125 bpv, 5 at 0.25 on norm-256). The work left is estimated again after
  * each encode; the fraction shown never goes back. */
-constexpr double RemovalWork = 3.0;
+constexpr double RemovalWork = RefinementEngine::RemovalWork;
 constexpr double CorrectionWork = 0.25;
 constexpr double StepTrialWork = 0.1;
 constexpr double CorrectionsPerOctave = 2.5;

@@ -176,7 +176,7 @@ ApproximateToBudget(RefinementEngine & engine, std::size_t payloadBytes, double 
   // The check on the refinement's state, made as soon as the competitor is ready: a competitor still in
   // the making is not waited for, the schedule goes on meanwhile and stops where the check abandons the
   // points (the same decision as if it had waited; norm-256 at 0.03125 bpv waited 0.2 to 0.26 s here).
-  // The schedule asks at each of its progress reports (every 1% of a refinement, the end of a decimation).
+  // The schedule asks at each of its progress reports (every 1% of a refinement or a decimation).
   double competitorError = std::numeric_limits<double>::infinity();
   bool   checked = !competitor;
   auto   ask = [&] {

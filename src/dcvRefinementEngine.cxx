@@ -20,6 +20,7 @@
 #include "dcvPixelSource.h"
 #include "dcvTetrahedralization.h"
 
+#include <boost/container/small_vector.hpp>
 #include <Eigen/IterativeLinearSolvers>
 #include <Eigen/SparseCore>
 
@@ -108,7 +109,8 @@ private:
  * f(y, z, x0, x1) for each row, in ForEachSpan's order. A cell's rows are short (9 voxels on average on
  * norm-256 at 0.03125 bpv) and their starts missed the cache one after the other; asked for together, the
  * misses overlap (ct-avm at 0.0625 bpv: CPU time 0.86, 0.91 with the last voxels, 0.98 with the bits).
- * The rows are kept per thread: f must not call it again. */
+ * The rows are kept on the stack (a thread_local list cost a call to find it per cell); a cell of more
+ * than 128 rows, some thousand voxels, puts them on the heap. */
 template <typename TPixel, typename TFunction>
 void
 ForEachSpanPrefetched(const GridSize & grid, const std::array<GridPoint, 4> & p, const TPixel * image,
@@ -118,8 +120,7 @@ ForEachSpanPrefetched(const GridSize & grid, const std::array<GridPoint, 4> & p,
   {
     int32_t y, z, x0, x1;
   };
-  static thread_local std::vector<Span> spans;
-  spans.clear();
+  boost::container::small_vector<Span, 128> spans;
   ForEachSpan(grid, p, [&](int32_t y, int32_t z, int32_t x0, int32_t x1) {
     spans.push_back({ y, z, x0, x1 });
     const uint64_t first = grid.Offset(x0, y, z), last = first + uint64_t(x1 - x0);
@@ -791,21 +792,23 @@ struct RefinementEngine::Impl
   {
     static thread_local std::vector<std::pair<Tetrahedralization::CellId, uint64_t>> incident;
     mesh.IncidentVolumes(v, incident);
-    // Summed in a fixed order (the incident cells come in the order of a walk that starts wherever CGAL
-    // last pointed v), for reproducible keys.
-    static thread_local std::vector<std::pair<double, double>> terms;
-    terms.clear();
-    for (const auto & [cell, volume6] : incident)
+    // The errors summed in a fixed order, ascending (the incident cells come in the order of a walk that
+    // starts wherever CGAL last pointed v), for reproducible keys. The volumes are integers whose sum (at
+    // most 6 times the grid's voxels, < 2^53) is exact in any order: only the errors are sorted.
+    boost::container::small_vector<double, 64> errors;
+    uint64_t                                   volume6 = 0;
+    for (const auto & [cell, cellVolume6] : incident)
     {
-      terms.emplace_back(cellError[cell], double(volume6)); // as Scan() gives it
+      errors.push_back(cellError[cell]); // as Scan() gives it
+      volume6 += cellVolume6;
     }
-    std::sort(terms.begin(), terms.end());
-    double error = 0.0, volume = 0.0;
-    for (const auto & t : terms)
+    std::sort(errors.begin(), errors.end());
+    double error = 0.0;
+    for (double e : errors)
     {
-      error += t.first;
-      volume += t.second;
+      error += e;
     }
+    const double volume = double(volume6);
     // Eq. 6: the error without v, as stored at its insertion, scaled to its incident volume now.
     const double without = volumeBefore[v] > 0.0 ? errorBefore[v] * volume / volumeBefore[v] : 0.0;
     return without - error;
@@ -927,36 +930,34 @@ void
 RefinementEngine::Approximate(std::size_t numberOfPoints, const ProgressFunction & progress)
 {
   Impl & d = *m_Impl;
-  // Work units: the insertions still to make and the removals and insertions of the schedule, for the
-  // progress fraction (a caller that refined first sees only the schedule's).
+  // Work units: the insertions still to make and the removals (RemovalWork each) and insertions of the
+  // schedule, for the progress fraction (a caller that refined first sees only the schedule's).
   const std::size_t refinements = numberOfPoints > GetNumberOfPoints() ? numberOfPoints - GetNumberOfPoints() : 0;
-  std::size_t       total = refinements;
+  double            total = double(refinements);
   if (d.parameters.decimation)
   {
     for (std::size_t k = numberOfPoints / 2; k > 0; k /= 2)
     {
-      total += 2 * k;
+      total += (RemovalWork + 1.0) * double(k);
     }
   }
-  std::size_t done = 0;
-  auto        part = [&](std::size_t units) {
-    const std::size_t from = done;
+  double done = 0.0;
+  auto   part = [&](double units) {
+    const double from = done;
     done += units;
     return progress ? ProgressFunction([&, from, units](double f) {
-      progress(std::min(1.0, (double(from) + f * double(units)) / double(std::max<std::size_t>(1, total))));
+      progress(std::min(1.0, (from + f * units) / std::max(1.0, total)));
     })
-                           : ProgressFunction();
+                      : ProgressFunction();
   };
-  Refine(numberOfPoints, part(refinements));
+  Refine(numberOfPoints, part(double(refinements)));
   if (d.parameters.decimation)
   {
     for (std::size_t k = numberOfPoints / 2; k > 0; k /= 2)
     {
       const std::size_t before = GetNumberOfPoints();
-      Decimate(std::min(k, before > NumberOfCorners ? before - NumberOfCorners : 0));
-      if (const ProgressFunction removed = part(k))
-        removed(1.0);
-      Refine(before, part(k));
+      Decimate(std::min(k, before > NumberOfCorners ? before - NumberOfCorners : 0), part(RemovalWork * double(k)));
+      Refine(before, part(double(k)));
     }
   }
   if (d.parameters.leastSquares)
@@ -998,7 +999,7 @@ RefinementEngine::Refine(std::size_t numberOfPoints, const ProgressFunction & pr
 }
 
 void
-RefinementEngine::Decimate(std::size_t count)
+RefinementEngine::Decimate(std::size_t count, const ProgressFunction & progress)
 {
   Impl &                d = *m_Impl;
   const StageTimer      timer(d.timings.decimation);
@@ -1021,6 +1022,7 @@ RefinementEngine::Decimate(std::size_t count)
   }
   std::priority_queue<RemovalEntry> heap(std::less<RemovalEntry>(), std::move(entries));
   std::vector<VertexId>             neighbours;
+  const std::size_t                 every = std::max<std::size_t>(1, count / 100);
   for (std::size_t removed = 0; removed < count && !heap.empty();)
   {
     const RemovalEntry e = heap.top();
@@ -1045,6 +1047,14 @@ RefinementEngine::Decimate(std::size_t count)
     {
       heap.push(RemovalEntry{ d.CachedRemovalCost(v), v, ++d.stamp[v] });
     }
+    if (progress && removed % every == 0)
+    {
+      progress(double(removed) / double(count));
+    }
+  }
+  if (progress)
+  {
+    progress(1.0);
   }
 }
 
@@ -1059,9 +1069,7 @@ RefinementEngine::Resize(std::size_t numberOfPoints, const ProgressFunction & pr
   }
   if (numberOfPoints < n)
   {
-    Decimate(n - numberOfPoints);
-    if (progress)
-      progress(1.0);
+    Decimate(n - numberOfPoints, progress);
   }
   else
   {

@@ -41,12 +41,27 @@ TEST(Progress, TerminalShowsABarThePercentageAndTheTimeLeft)
 TEST(Progress, LogsGetAPlainLineAtEachTenthOfALongJobOnly)
 {
   ProgressMeter m("compressing", false);
+  EXPECT_EQ(m.Update(0.0, 0.0), "");
   EXPECT_EQ(m.Update(0.35, 5.0), "") << "a short job stays silent";
   EXPECT_EQ(m.Update(0.5, 10.0), "compressing: 50% after 0:10, about 0:10 left\n");
   EXPECT_EQ(m.Update(0.55, 11.0), "");
   EXPECT_EQ(m.Update(0.6, 12.0), "compressing: 60% after 0:12, about 0:08 left\n");
   EXPECT_EQ(m.Update(0.6, 13.0), "");
   EXPECT_EQ(m.Update(1.0, 4000.0), "compressing: 100% after 1:06:40\n");
+}
+
+TEST(Progress, TheTimeLeftCountsFromTheFirstReport)
+{
+  // The encoder's first report ends a stage of a fixed share (I*: 20%) whatever it took: 3 s here.
+  ProgressMeter m("compressing", false);
+  EXPECT_EQ(m.Update(0.2, 3.0), "");
+  // 40% more in 10 s: 40% left, 10 s (from the start it would read 13 x 0.4 / 0.6, 0:09).
+  EXPECT_EQ(m.Update(0.6, 13.0), "compressing: 60% after 0:13, about 0:10 left\n");
+  ProgressMeter skipped("compressing", true);
+  EXPECT_EQ(skipped.Update(0.25, 0.03), "\rcompressing [#######" + std::string(23, ' ') + "] 25%\033[K");
+  // A quarter in 20 s since the first report: half left, 40 s (from the start it would read 0:20).
+  EXPECT_EQ(skipped.Update(0.5, 20.03),
+            "\rcompressing [" + std::string(15, '#') + std::string(15, ' ') + "] 50%, 0:40 left\033[K");
 }
 
 TEST(Progress, DurationsReadAsClockTimes)

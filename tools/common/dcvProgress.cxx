@@ -52,10 +52,20 @@ ProgressMeter::Update(double fraction, double seconds)
 {
   fraction = std::clamp(fraction, 0.0, 1.0);
   const int percent = int(fraction * 100.0);
-  // The time left from the pace so far: shown once there is a pace to go by (2% and one second done).
-  std::string left;
-  if (fraction >= 0.02 && fraction < 1.0 && seconds >= 1.0)
-    left = Duration(seconds * (1.0 - fraction) / fraction);
+  // The time left from the pace since the first report: the encoder's first is the end of a stage of
+  // its own (I*, given a fixed share whether it took 3 s or was skipped in 0.03 s), whose share would
+  // bias a pace taken from the start (norm-256 at 0.25 bpv: 0:28 left shown where 1:00 was). Shown
+  // once there is a pace to go by (2% and one second since).
+  if (!m_Started)
+  {
+    m_Started = true;
+    m_FirstFraction = fraction;
+    m_FirstSeconds = seconds;
+  }
+  std::string  left;
+  const double done = fraction - m_FirstFraction, elapsed = seconds - m_FirstSeconds;
+  if (done >= 0.02 && fraction < 1.0 && elapsed >= 1.0)
+    left = Duration(elapsed * (1.0 - fraction) / done);
   if (m_Terminal)
   {
     if (m_Cleared)

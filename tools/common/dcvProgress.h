@@ -26,9 +26,10 @@ namespace dcv::tools
 {
 
 /** What the progress of one job looks like, from the fraction done and the seconds since it started:
- * on a terminal a bar, the percentage and an estimate of the time left, redrawn in place; elsewhere (a
- * log, a pipe) a plain line at each tenth, once the job has run PlainAfterSeconds (short jobs stay
- * silent). Separate from the clock and the stream so that tests can drive it. */
+ * on a terminal a bar, the percentage and an estimate of the time left (from the pace since the first
+ * report), redrawn in place; elsewhere (a log, a pipe) a plain line at each tenth, once the job has run
+ * PlainAfterSeconds (short jobs stay silent). Separate from the clock and the stream so that tests can
+ * drive it. */
 class ProgressMeter
 {
 public:
@@ -52,6 +53,9 @@ private:
   std::string m_Last;       // the last line drawn on the terminal
   int         m_Tenth{ 0 }; // the last tenth reported in plain lines
   bool        m_Cleared{ false };
+  bool        m_Started{ false }; // the first report's fraction and seconds: where the pace counts from
+  double      m_FirstFraction{ 0.0 };
+  double      m_FirstSeconds{ 0.0 };
 };
 
 /** A progress function for EncoderOptions::progress showing a ProgressMeter on stderr (a terminal when
