@@ -16,6 +16,7 @@
  *
  *=========================================================================*/
 #include "dcvTetrahedralization.h"
+#include "dcvVertexRemoval.h"
 
 #include <CGAL/Delaunay_triangulation_3.h>
 #include <CGAL/Delaunay_triangulation_cell_base_3.h>
@@ -105,7 +106,9 @@ struct Tetrahedralization::Impl
   std::vector<VertexHandle> vertices; // by vertex id (null once removed)
   std::vector<CellHandle>   cells;    // by cell id (null once the cell died)
   std::vector<CellHandle>   scratch;
+  std::vector<CellHandle>   hole;  // Remove's
   std::vector<KeyedCell>    keyed; // RegisterInOrder's
+  VertexRemovalScratch<Delaunay> removal;
 
   uint64_t
   Volume6(const CellHandle & c) const
@@ -307,9 +310,9 @@ Tetrahedralization::Remove(VertexId id, std::vector<CellId> & killed, std::vecto
     throw std::logic_error("Tetrahedralization: no such vertex");
   }
   VertexHandle v = d.vertices[id];
-  d.scratch.clear();
-  d.dt.incident_cells(v, std::back_inserter(d.scratch));
-  for (const CellHandle & dead : d.scratch)
+  d.hole.clear();
+  d.dt.incident_cells(v, std::back_inserter(d.hole));
+  for (const CellHandle & dead : d.hole)
   {
     if (dead->info().Id() != NoCell)
     {
@@ -317,8 +320,13 @@ Tetrahedralization::Remove(VertexId id, std::vector<CellId> & killed, std::vecto
     }
   }
   d.Kill(killed);
-  d.scratch.clear();
-  d.dt.remove_and_give_new_cells(v, std::back_inserter(d.scratch));
+  // The cells CGAL's removal gives, without its hash maps (dcvVertexRemoval.h); CGAL's own removal where
+  // the link is not plainly three-dimensional.
+  if (!RemoveByLink(d.dt, v, d.hole, d.scratch, d.removal, NoCell))
+  {
+    d.scratch.clear();
+    d.dt.remove_and_give_new_cells(v, std::back_inserter(d.scratch));
+  }
   d.vertices[id] = VertexHandle();
   d.RegisterInOrder(created);
 }
