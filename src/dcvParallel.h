@@ -20,6 +20,7 @@
 
 // Internal to the compiled sources: the one way the encoder spreads work over threads (TBB).
 #include <tbb/blocked_range.h>
+#include <tbb/parallel_invoke.h>
 #include <tbb/parallel_for.h>
 #include <tbb/task_arena.h>
 
@@ -56,6 +57,15 @@ ParallelFor(std::size_t n, std::size_t grain, F && f)
       f(i);
     }
   });
+}
+
+/** Calls f() and g() side by side on the threads of the current task arena (one after the other where
+ * no other thread is free); each must write only its own results. */
+template <typename F, typename G>
+void
+ParallelInvoke(F && f, G && g)
+{
+  tbb::parallel_invoke(f, g);
 }
 
 /** The number of threads ParallelFor uses here (that of the current task arena). */

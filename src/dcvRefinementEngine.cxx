@@ -40,9 +40,6 @@ namespace
 constexpr uint64_t NoVoxel = ~uint64_t(0);
 constexpr uint32_t NoCell = Tetrahedralization::NoCell;
 constexpr uint32_t NumberOfCorners = 8; // vertex ids 0-7, never removed
-// Removal costs a task computes after each removal: a removal leaves some 13 to compute, of about 4 us
-// each (norm-256; grains of 2 and 8 measured no better).
-constexpr std::size_t DecimationGrain = 4;
 
 /** Max-heap entry: a key and the cell it belongs to. Entries of dead cells are skipped when they
  * surface (lazy deletion); a cell only changes on a full rescan, which rebuilds the heaps. Ties
@@ -247,6 +244,7 @@ struct RefinementEngine::Impl
   std::vector<CellScan>                   scans;      // of the created cells
   std::vector<std::array<double, 2>>      valueSums;  // of the created cells, for ChooseValue
   std::vector<VertexId>                   staleCosts; // UpdateRemovalCosts
+  std::vector<std::vector<std::pair<Tetrahedralization::CellId, uint64_t>>> incidentOfNeighbours; // RemoveUpdatingCosts
 
   bool
   IsVertex(uint64_t voxel) const
@@ -565,6 +563,13 @@ struct RefinementEngine::Impl
   {
     scans.resize(created.size());
     OverCreated([&](std::size_t i) { scans[i] = Scan(created[i]); });
+    CommitCreated();
+  }
+
+  // Commits the scanned new cells in order.
+  void
+  CommitCreated()
+  {
     for (std::size_t i = 0; i < created.size(); ++i)
     {
       Commit(created[i].id, scans[i]);
@@ -792,6 +797,13 @@ struct RefinementEngine::Impl
   {
     static thread_local std::vector<std::pair<Tetrahedralization::CellId, uint64_t>> incident;
     mesh.IncidentVolumes(v, incident);
+    return RemovalCost(v, incident);
+  }
+
+  // The same from v's incident cells and their volumes (Tetrahedralization::IncidentVolumes).
+  double
+  RemovalCost(VertexId v, const std::vector<std::pair<Tetrahedralization::CellId, uint64_t>> & incident) const
+  {
     // The errors summed in a fixed order, ascending (the incident cells come in the order of a walk that
     // starts wherever CGAL last pointed v), for reproducible keys. The volumes are integers whose sum (at
     // most 6 times the grid's voxels, < 2^53) is exact in any order: only the errors are sorted.
@@ -847,8 +859,9 @@ struct RefinementEngine::Impl
     }
   }
 
+  // Removes v from the mesh and forgets its cells (its hole's new cells not yet scanned).
   void
-  Remove(VertexId v, std::vector<VertexId> * neighbours)
+  RemoveFromMesh(VertexId v)
   {
     if (v < NumberOfCorners || v >= vertexAlive.size() || !vertexAlive[v])
     {
@@ -861,13 +874,51 @@ struct RefinementEngine::Impl
     vertexAlive[v] = 0;
     SetVertex(grid.Offset(p[0], p[1], p[2]), false);
     Kill(killed);
+  }
+
+  void
+  Remove(VertexId v)
+  {
+    RemoveFromMesh(v);
     ScanCreated();
-    if (neighbours)
+  }
+
+  // Remove(v), and the removal costs of its neighbours (the vertices of the new cells, alive and not
+  // corners, by id, into `neighbours`) brought up to date: their stars are walked while the new cells
+  // are scanned (each reads the mesh only; a removal's scans and walks are some 10 us each, so they go
+  // side by side instead of each split over the threads), then the costs are summed from the scans.
+  void
+  RemoveUpdatingCosts(VertexId v, std::vector<VertexId> & neighbours)
+  {
+    RemoveFromMesh(v);
+    neighbours.clear();
+    for (const auto & c : created)
     {
-      for (const auto & c : created)
-      {
-        neighbours->insert(neighbours->end(), c.vertices.begin(), c.vertices.end());
-      }
+      neighbours.insert(neighbours.end(), c.vertices.begin(), c.vertices.end());
+    }
+    std::sort(neighbours.begin(), neighbours.end());
+    neighbours.erase(std::unique(neighbours.begin(), neighbours.end()), neighbours.end());
+    neighbours.erase(std::remove_if(neighbours.begin(),
+                                    neighbours.end(),
+                                    [this](VertexId u) { return u < NumberOfCorners || !vertexAlive[u]; }),
+                     neighbours.end());
+    if (incidentOfNeighbours.size() < neighbours.size())
+    {
+      incidentOfNeighbours.resize(neighbours.size());
+    }
+    scans.resize(created.size());
+    ParallelInvoke([&] { OverCreated([&](std::size_t i) { scans[i] = Scan(created[i]); }); },
+                   [&] {
+                     for (std::size_t k = 0; k < neighbours.size(); ++k)
+                     {
+                       mesh.IncidentVolumes(neighbours[k], incidentOfNeighbours[k]);
+                     }
+                   });
+    CommitCreated();
+    for (std::size_t k = 0; k < neighbours.size(); ++k)
+    {
+      removalCost[neighbours[k]] = RemovalCost(neighbours[k], incidentOfNeighbours[k]);
+      removalCostValid[neighbours[k]] = 1;
     }
   }
 };
@@ -1031,18 +1082,9 @@ RefinementEngine::Decimate(std::size_t count, const ProgressFunction & progress)
     {
       continue; // stale: the vertex died or its neighbourhood changed
     }
-    neighbours.clear();
-    d.Remove(e.vertex, &neighbours);
+    // The neighbours' new costs, pushed in the order of their ids.
+    d.RemoveUpdatingCosts(e.vertex, neighbours);
     ++removed;
-    std::sort(neighbours.begin(), neighbours.end());
-    neighbours.erase(std::unique(neighbours.begin(), neighbours.end()), neighbours.end());
-    neighbours.erase(std::remove_if(neighbours.begin(),
-                                    neighbours.end(),
-                                    [&d](VertexId v) { return v < NumberOfCorners || !d.vertexAlive[v]; }),
-                     neighbours.end());
-    // The neighbours' new costs are about a third of the decimation's time: computed in parallel, then
-    // pushed in the order of their ids as before, so the heap pops the same vertices.
-    d.UpdateRemovalCosts(neighbours, DecimationGrain);
     for (VertexId v : neighbours)
     {
       heap.push(RemovalEntry{ d.CachedRemovalCost(v), v, ++d.stamp[v] });
@@ -1405,7 +1447,7 @@ RefinementEngine::EstimateRemovalCost(VertexId v) const
 void
 RefinementEngine::RemoveVertex(VertexId v)
 {
-  m_Impl->Remove(v, nullptr);
+  m_Impl->Remove(v);
 }
 
 RefinementEngine::VertexId

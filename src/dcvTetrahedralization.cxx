@@ -89,7 +89,8 @@ using Delaunay = CGAL::Delaunay_triangulation_3<Kernel, DataStructure>;
 using CellHandle = Delaunay::Cell_handle;
 using VertexHandle = Delaunay::Vertex_handle;
 using CgalPoint = Kernel::Point_3;
-using KeyedCell = std::pair<std::array<Tetrahedralization::VertexId, 4>, CellHandle>; // sorted vertex ids
+// A cell's sorted vertex ids, the first two and the last two in one integer each: compared as a pair.
+using KeyedCell = std::pair<std::pair<uint64_t, uint64_t>, CellHandle>;
 
 CgalPoint
 ToCgal(const GridPoint & p, const GridScale & s)
@@ -157,11 +158,19 @@ struct Tetrahedralization::Impl
     keyed.clear();
     for (const CellHandle & c : scratch)
     {
-      std::array<VertexId, 4> k{
-        c->vertex(0)->info(), c->vertex(1)->info(), c->vertex(2)->info(), c->vertex(3)->info()
+      uint64_t k[4] = { c->vertex(0)->info(), c->vertex(1)->info(), c->vertex(2)->info(), c->vertex(3)->info() };
+      // A sorting network of 5 exchanges (std::sort's loops were a third of this function's time).
+      auto exchange = [&k](int i, int j) {
+        const uint64_t a = std::min(k[i], k[j]), b = std::max(k[i], k[j]);
+        k[i] = a;
+        k[j] = b;
       };
-      std::sort(k.begin(), k.end());
-      keyed.emplace_back(k, c);
+      exchange(0, 1);
+      exchange(2, 3);
+      exchange(0, 2);
+      exchange(1, 3);
+      exchange(1, 2);
+      keyed.emplace_back(std::make_pair(k[0] << 32 | k[1], k[2] << 32 | k[3]), c);
     }
     std::sort(keyed.begin(), keyed.end(), [](const auto & a, const auto & b) { return a.first < b.first; });
     for (const auto & kc : keyed)
@@ -384,7 +393,10 @@ Tetrahedralization::Impl::ForEachIncident(VertexId id, F && f) const
         const CellHandle n = c->neighbor(j);
         if (firstVisit(n))
         {
-          __builtin_prefetch(&*n); // read when its turn comes: its cache miss overlaps the walk meanwhile
+          // Read when its turn comes: its cache misses overlap the walk meanwhile (a cell is 72 bytes, on
+          // two lines mostly).
+          __builtin_prefetch(&*n);
+          __builtin_prefetch(reinterpret_cast<const char *>(&*n) + 64);
           star.push_back(n);
         }
       }
