@@ -21,6 +21,7 @@
 // Internal to the compiled sources: the one way the encoder spreads work over threads (TBB).
 #include <tbb/blocked_range.h>
 #include <tbb/parallel_invoke.h>
+#include <tbb/parallel_sort.h>
 #include <tbb/parallel_for.h>
 #include <tbb/task_arena.h>
 
@@ -66,6 +67,15 @@ void
 ParallelInvoke(F && f, G && g)
 {
   tbb::parallel_invoke(f, g);
+}
+
+/** Sorts [first, last) on the threads of the current task arena: for keys that are all distinct, so that
+ * the order does not depend on the threads (std::sort's, where they are). */
+template <typename Iterator>
+void
+ParallelSort(Iterator first, Iterator last)
+{
+  tbb::parallel_sort(first, last);
 }
 
 /** The number of threads ParallelFor uses here (that of the current task arena). */

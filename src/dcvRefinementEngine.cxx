@@ -693,7 +693,7 @@ struct RefinementEngine::Impl
       }
       keyed[k] = { key, uint32_t(first + k) };
     });
-    std::sort(keyed.begin(), keyed.end());
+    ParallelSort(keyed.begin(), keyed.end()); // distinct keys: (a vertex's position, the cell's place)
     std::vector<uint32_t> order(keyed.size());
     for (std::size_t k = 0; k < order.size(); ++k)
     {
@@ -1297,7 +1297,7 @@ RefinementEngine::OptimizeValues()
           byVoxel.emplace_back(d.grid.Offset(q[0], q[1], q[2]), v);
         }
       }
-      std::sort(byVoxel.begin(), byVoxel.end());
+      ParallelSort(byVoxel.begin(), byVoxel.end()); // distinct keys: one vertex a voxel
       for (const auto & [voxel, v] : byVoxel)
       {
         index[v] = n++;
