@@ -17,6 +17,7 @@
  *=========================================================================*/
 #include "dcvTetrahedralization.h"
 #include "dcvVertexRemoval.h"
+#include "dcvParallel.h"
 
 #include <CGAL/Delaunay_triangulation_3.h>
 #include <CGAL/Delaunay_triangulation_cell_base_3.h>
@@ -477,18 +478,45 @@ Tetrahedralization::FiniteCells() const
 void
 Tetrahedralization::FiniteCells(CellId first, CellId last, std::vector<Cell> & out) const
 {
-  // By id: an order that does not depend on memory addresses (see RegisterInOrder).
+  // By id: an order that does not depend on memory addresses (see RegisterInOrder). Blocks of ids on
+  // every thread, each written at the place the live cells before it leave (the cells' vertices miss the
+  // cache one after the other: 4% of the encoder's main thread at 0.25 bpv when read on it alone).
   out.clear();
   const auto & cells = m_Impl->cells;
   const CellId end = CellId(std::min<std::size_t>(last, cells.size()));
-  for (CellId id = first; id < end; ++id)
+  if (end <= first)
   {
-    if (const CellHandle & c = cells[id]; c != CellHandle())
-    {
-      out.push_back(
-        Cell{ id, { c->vertex(0)->info(), c->vertex(1)->info(), c->vertex(2)->info(), c->vertex(3)->info() } });
-    }
+    return;
   }
+  constexpr std::size_t    block = 4096;
+  const std::size_t        blocks = (std::size_t(end - first) + block - 1) / block;
+  std::vector<std::size_t> start(blocks + 1, 0);
+  auto                     range = [&](std::size_t b) {
+    return std::make_pair(CellId(first + b * block), CellId(std::min<std::size_t>(end, first + (b + 1) * block)));
+  };
+  ParallelFor(blocks, 1, [&](std::size_t b) {
+    const auto [from, to] = range(b);
+    start[b + 1] = std::size_t(std::count_if(cells.begin() + from, cells.begin() + to, [](const CellHandle & c) {
+      return c != CellHandle();
+    }));
+  });
+  for (std::size_t b = 0; b < blocks; ++b)
+  {
+    start[b + 1] += start[b];
+  }
+  out.resize(start[blocks]);
+  ParallelFor(blocks, 1, [&](std::size_t b) {
+    const auto [from, to] = range(b);
+    std::size_t at = start[b];
+    for (CellId id = from; id < to; ++id)
+    {
+      if (const CellHandle & c = cells[id]; c != CellHandle())
+      {
+        out[at++] =
+          Cell{ id, { c->vertex(0)->info(), c->vertex(1)->info(), c->vertex(2)->info(), c->vertex(3)->info() } };
+      }
+    }
+  });
 }
 
 const GridPoint &
