@@ -102,14 +102,14 @@ ToCgal(const GridPoint & p, const GridScale & s)
 
 struct Tetrahedralization::Impl
 {
-  Delaunay                  dt;
-  GridScale                 scale{ { 1, 1, 1 } };
-  std::vector<GridPoint>    points;   // by vertex id
-  std::vector<VertexHandle> vertices; // by vertex id (null once removed)
-  std::vector<CellHandle>   cells;    // by cell id (null once the cell died)
-  std::vector<CellHandle>   scratch;
-  std::vector<CellHandle>   hole;  // Remove's
-  std::vector<KeyedCell>    keyed; // RegisterInOrder's
+  Delaunay                       dt;
+  GridScale                      scale{ { 1, 1, 1 } };
+  std::vector<GridPoint>         points;   // by vertex id
+  std::vector<VertexHandle>      vertices; // by vertex id (null once removed)
+  std::vector<CellHandle>        cells;    // by cell id (null once the cell died)
+  std::vector<CellHandle>        scratch;
+  std::vector<CellHandle>        hole;  // Remove's
+  std::vector<KeyedCell>         keyed; // RegisterInOrder's
   VertexRemovalScratch<Delaunay> removal;
 
   uint64_t
@@ -496,9 +496,8 @@ Tetrahedralization::FiniteCells(CellId first, CellId last, std::vector<Cell> & o
   };
   ParallelFor(blocks, 1, [&](std::size_t b) {
     const auto [from, to] = range(b);
-    start[b + 1] = std::size_t(std::count_if(cells.begin() + from, cells.begin() + to, [](const CellHandle & c) {
-      return c != CellHandle();
-    }));
+    start[b + 1] = std::size_t(
+      std::count_if(cells.begin() + from, cells.begin() + to, [](const CellHandle & c) { return c != CellHandle(); }));
   });
   for (std::size_t b = 0; b < blocks; ++b)
   {

@@ -47,7 +47,7 @@ struct VertexRemovalScratch
   std::vector<uint16_t>           linkIndex; // by vertex id (info): the position in `link`
   std::vector<VertexHandle>       linked;    // by position in `link`: the vertex of the small triangulation
   std::vector<Boundary>           boundary;
-  std::vector<int32_t>            slots; // open addressing over `boundary` by key (index + 1, 0: free)
+  std::vector<int32_t>            slots;  // open addressing over `boundary` by key (index + 1, 0: free)
   std::vector<CellHandle>         inside; // the small triangulation's cells that fill the hole
   std::vector<std::array<int, 4>> glue;   // per inside cell and facet: the boundary facet, or -1
 };
@@ -86,12 +86,10 @@ KeySlot(uint64_t key, std::size_t mask)
  * three-dimensional (the caller then asks CGAL). */
 template <typename TDelaunay>
 bool
-RemoveByLink(TDelaunay &                                             dt,
-             typename TDelaunay::Vertex_handle                       v,
-             const std::vector<typename TDelaunay::Cell_handle> &   hole,
-             std::vector<typename TDelaunay::Cell_handle> &         created,
-             VertexRemovalScratch<TDelaunay> &                      s,
-             uint32_t                                               noCell)
+RemoveByLink(TDelaunay & dt, typename TDelaunay::Vertex_handle v,
+             const std::vector<typename TDelaunay::Cell_handle> & hole,
+             std::vector<typename TDelaunay::Cell_handle> & created, VertexRemovalScratch<TDelaunay> & s,
+             uint32_t noCell)
 {
   using VertexHandle = typename TDelaunay::Vertex_handle;
   using CellHandle = typename TDelaunay::Cell_handle;
@@ -124,10 +122,10 @@ RemoveByLink(TDelaunay &                                             dt,
   }
   if (small.dimension() != 3)
     return false;
-  auto position = [&](const VertexHandle & u) { return dt.is_infinite(u) ? infinite : uint64_t(s.linkIndex[u->info()]); };
-  auto smallPosition = [&](const VertexHandle & u) {
-    return small.is_infinite(u) ? infinite : uint64_t(u->info());
+  auto position = [&](const VertexHandle & u) {
+    return dt.is_infinite(u) ? infinite : uint64_t(s.linkIndex[u->info()]);
   };
+  auto smallPosition = [&](const VertexHandle & u) { return small.is_infinite(u) ? infinite : uint64_t(u->info()); };
 
   // The facets of the hole, seen from inside, in a table by key.
   s.boundary.clear();
@@ -175,7 +173,8 @@ RemoveByLink(TDelaunay &                                             dt,
   const uint64_t key = s.boundary[seed].key;
   CellHandle     start;
   int            i0 = 0, i1 = 0, i2 = 0;
-  if (!small.tds().is_facet(s.linked[key & 0xffff], s.linked[(key >> 16) & 0xffff], s.linked[key >> 32], start, i0, i1, i2))
+  if (!small.tds().is_facet(
+        s.linked[key & 0xffff], s.linked[(key >> 16) & 0xffff], s.linked[key >> 32], start, i0, i1, i2))
     return false;
   int facet = 6 - i0 - i1 - i2;
   if (detail::FacetKey<TDelaunay>(start, facet, smallPosition) != key)

@@ -55,7 +55,8 @@ using VertexBase = CGAL::Triangulation_vertex_base_with_info_3<uint32_t, Kernel>
 using CellBase =
   CGAL::Triangulation_cell_base_with_info_3<CellInfo, Kernel, CGAL::Delaunay_triangulation_cell_base_3<Kernel>>;
 using Delaunay =
-  CGAL::Delaunay_triangulation_3<Kernel, CGAL::Triangulation_data_structure_3<VertexBase, CellBase, CGAL::Sequential_tag>>;
+  CGAL::Delaunay_triangulation_3<Kernel,
+                                 CGAL::Triangulation_data_structure_3<VertexBase, CellBase, CGAL::Sequential_tag>>;
 using Cells = std::vector<std::array<uint32_t, 4>>;
 
 /** Every cell (infinite ones too) as its vertices' ids in the cell's own order, sorted by those. */
@@ -85,7 +86,7 @@ struct Compared
 Compared
 RemoveFromBoth(const std::vector<std::array<int, 3>> & points, const std::vector<std::size_t> & order)
 {
-  Delaunay                   mine, theirs;
+  Delaunay                             mine, theirs;
   std::vector<Delaunay::Vertex_handle> mineV, theirsV;
   for (std::size_t i = 0; i < points.size(); ++i)
   {
@@ -96,9 +97,9 @@ RemoveFromBoth(const std::vector<std::array<int, 3>> & points, const std::vector
     theirsV.back()->info() = uint32_t(i);
   }
   EXPECT_EQ(Listed(mine), Listed(theirs));
-  dcv::VertexRemovalScratch<Delaunay>  scratch;
-  std::vector<Delaunay::Cell_handle>   hole, created, cgal;
-  Compared                             result;
+  dcv::VertexRemovalScratch<Delaunay> scratch;
+  std::vector<Delaunay::Cell_handle>  hole, created, cgal;
+  Compared                            result;
   for (std::size_t i : order)
   {
     hole.clear();
