@@ -20,6 +20,8 @@
 
 // Internal to the compiled sources: the one way the encoder spreads work over threads (TBB).
 #include <tbb/blocked_range.h>
+#include <tbb/global_control.h>
+#include <tbb/info.h>
 #include <tbb/parallel_invoke.h>
 #include <tbb/parallel_sort.h>
 #include <tbb/parallel_for.h>
@@ -27,6 +29,7 @@
 
 #include <algorithm>
 #include <cstddef>
+#include <optional>
 
 #if defined(__linux__)
 #  include <sys/resource.h>
@@ -90,6 +93,11 @@ template <typename F>
 decltype(auto)
 WithThreads(unsigned int threads, F && f)
 {
+  // More threads than cores: TBB keeps its workers to the cores unless told otherwise (and says so on
+  // stderr, whatever --quiet asked).
+  std::optional<tbb::global_control> allowed;
+  if (threads > unsigned(std::max(1, tbb::info::default_concurrency())))
+    allowed.emplace(tbb::global_control::max_allowed_parallelism, std::size_t(threads));
   tbb::task_arena arena(threads == 0 ? tbb::task_arena::automatic : int(threads));
   return arena.execute(f);
 }

@@ -23,6 +23,7 @@
 
 #include <cmath>
 #include <fstream>
+#include <thread>
 #include <tuple>
 
 namespace
@@ -238,6 +239,21 @@ TEST_F(CommandLine, CompressDecompressInfo)
   const double printed = std::stod(c.output.substr(c.output.find("PSNR: ") + 6));
   EXPECT_NEAR(printed, psnr, 1e-3);
   EXPECT_EQ(out->GetLargestPossibleRegion(), in->GetLargestPossibleRegion());
+}
+
+TEST_F(CommandLine, CompressOnMoreThreadsThanCoresIsQuietAndTheSame)
+{
+  const std::string phantom = Path("phantom.nrrd");
+  ASSERT_EQ(RunDcv("phantom " + phantom + " --size 32").status, 0);
+  const unsigned    many = 2 * std::max(1u, std::thread::hardware_concurrency()) + 1;
+  const std::string one = Path("one.dcv"), more = Path("more.dcv");
+  const Result      a = RunDcv("compress " + phantom + " " + one + " --bpv 0.125 --threads 1 --quiet");
+  ASSERT_EQ(a.status, 0) << a.output;
+  const Result b =
+    RunDcv("compress " + phantom + " " + more + " --bpv 0.125 --quiet --threads " + std::to_string(many));
+  ASSERT_EQ(b.status, 0) << b.output;
+  EXPECT_EQ(b.output, "") << "--quiet prints nothing (TBB warned of workers beyond the cores)";
+  EXPECT_EQ(dcv::test::FileBytes(one), dcv::test::FileBytes(more));
 }
 
 TEST_F(CommandLine, CompressRefusesABudgetTooSmallAndWritesNothing)
