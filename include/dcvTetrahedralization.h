@@ -103,6 +103,9 @@ public:
    * at a time, where a list of all of them (20 bytes a cell) would set a peak. */
   void
   FiniteCells(CellId first, CellId last, std::vector<Cell> & out) const;
+  /** The finite cells of `ids` (live ones), in that order, into `out` (resized to ids.size()). */
+  void
+  FiniteCells(const CellId * ids, std::size_t count, std::vector<Cell> & out) const;
 
   /** Position of a vertex. */
   const GridPoint &

@@ -513,6 +513,21 @@ Tetrahedralization::FiniteCells(CellId first, CellId last, std::vector<Cell> & o
   });
 }
 
+void
+Tetrahedralization::FiniteCells(const CellId * ids, std::size_t count, std::vector<Cell> & out) const
+{
+  const auto & cells = m_Impl->cells;
+  out.resize(count);
+  ParallelFor(count, 1024, [&](std::size_t i) {
+    const CellHandle & c = cells.at(ids[i]);
+    if (c == CellHandle())
+    {
+      throw std::invalid_argument("Tetrahedralization: no live cell " + std::to_string(ids[i]));
+    }
+    out[i] = Cell{ ids[i], { c->vertex(0)->info(), c->vertex(1)->info(), c->vertex(2)->info(), c->vertex(3)->info() } };
+  });
+}
+
 const GridPoint &
 Tetrahedralization::Point(VertexId v) const
 {

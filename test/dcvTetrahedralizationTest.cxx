@@ -19,6 +19,7 @@
 #include "dcvTestUtilities.h"
 #include "dcvTetrahedralization.h"
 
+#include <algorithm>
 #include <set>
 #include <thread>
 
@@ -184,6 +185,25 @@ TEST(Tetrahedralization, CompactedCellIdsAreDenseAndKeepTheirOrder)
     EXPECT_EQ(parts[i].id, before[i].id);
     EXPECT_EQ(parts[i].vertices, before[i].vertices);
   }
+  // A list of ids gives their cells in its order; a dead id is refused.
+  std::vector<Tetrahedralization::CellId> ids;
+  for (std::size_t i = before.size(); i-- > 0;)
+  {
+    ids.push_back(before[i].id);
+  }
+  mesh.FiniteCells(ids.data(), ids.size(), part);
+  ASSERT_EQ(part.size(), before.size());
+  for (std::size_t i = 0; i < part.size(); ++i)
+  {
+    EXPECT_EQ(part[i].id, ids[i]);
+    EXPECT_EQ(part[i].vertices, before[before.size() - 1 - i].vertices);
+  }
+  Tetrahedralization::CellId dead = 0;
+  while (std::any_of(before.begin(), before.end(), [&](const auto & c) { return c.id == dead; }))
+  {
+    ++dead;
+  }
+  EXPECT_THROW(mesh.FiniteCells(&dead, 1, part), std::invalid_argument);
   const auto renumbered = mesh.CompactCellIds();
   EXPECT_EQ(renumbered.size(), std::size_t(before.back().id) + 1);
   EXPECT_EQ(mesh.NumberOfCellIds(), before.size());
