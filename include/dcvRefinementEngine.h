@@ -167,6 +167,12 @@ public:
   void
   SetQuantizationStep(double step);
 
+  /** What SetQuantizationStep(step) would give, the approximation and its squared error (into
+   * `squaredError`), the engine left as it is: rate control's step trials, after which the engine is still
+   * at its step, its cells' state in hand. Throws std::invalid_argument unless the step is positive. */
+  Approximation
+  GetApproximationAtStep(double step, double & squaredError) const;
+
   /** Replaces the vertex values by those minimizing the total squared error against the image on the
    * current tetrahedralization (clamped to the value range); keeps the old ones if that is not better.
    * Returns the squared error gained (>= 0). */

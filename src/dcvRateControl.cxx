@@ -313,21 +313,22 @@ ApproximateToBudget(RefinementEngine & engine, std::size_t payloadBytes, double 
     }
     const double target = TargetFill * budget;
     auto         predicted = [&] { return states.back().second * std::pow(states.back().first / target, b); };
-    double       bestMultiple = 1.0, bestError = predicted(), current = 1.0;
-    // The mesh is solved (fit() ends so): SetQuantizationStep quantizes the solution again.
+    double       bestMultiple = 1.0, bestError = predicted();
+    // The mesh is solved (fit() ends so): each step quantizes the solution again. A trial codes the mesh
+    // at its step and leaves the engine at the current one, whose cells' state and payload stay in hand
+    // should it remain the best (a full rescan and a coding less).
     stepsToCome = false;
-    auto requantize = [&](double m) {
-      engine.SetQuantizationStep(m * step);
-      current = m;
-      encode();
-      fitted.assign(1, { double(engine.GetNumberOfPoints()), double(result.payload.size()) });
-      shown.Done(StepTrialWork * fitted.back().first, workLeft(fitted, false));
-    };
+    const double count = double(engine.GetNumberOfPoints());
     for (double m : stepMultiples)
     {
       if (m != 1.0)
       {
-        requantize(m);
+        double error = 0.0;
+        ReturnFreedMemory(); // as encode() does
+        const auto size =
+          double(EncodePayload(engine.GetApproximationAtStep(m * step, error), q0, m * step, true).size());
+        states.emplace_back(size, error);
+        shown.Done(StepTrialWork * count, workLeft({ { count, size } }, false));
         if (predicted() < bestError)
         {
           bestMultiple = m;
@@ -339,9 +340,16 @@ ApproximateToBudget(RefinementEngine & engine, std::size_t payloadBytes, double 
     {
       return abandon();
     }
-    if (bestMultiple != current)
+    if (bestMultiple != 1.0)
     {
-      requantize(bestMultiple);
+      engine.SetQuantizationStep(bestMultiple * step);
+      encode();
+    }
+    // The law of the final fit starts from the chosen step's state.
+    fitted.assign(1, { count, double(result.payload.size()) });
+    if (bestMultiple != 1.0)
+    {
+      shown.Done(StepTrialWork * count, workLeft(fitted, false));
     }
     result.step = bestMultiple * step;
     fit();

@@ -270,13 +270,19 @@ struct RefinementEngine::Impl
   double
   Quantize(double v) const
   {
+    return Quantize(v, parameters.quantizationStep);
+  }
+  /** The same on the lattice of another step. */
+  double
+  Quantize(double v, double step) const
+  {
     const RefinementParameters & p = parameters;
-    if (!(p.quantizationStep > 0.0))
+    if (!(step > 0.0))
     {
       return v;
     }
-    auto   at = [&p](double k) { return p.quantizationOrigin + k * p.quantizationStep; };
-    double k = std::round((v - p.quantizationOrigin) / p.quantizationStep);
+    auto   at = [&p, step](double k) { return p.quantizationOrigin + k * step; };
+    double k = std::round((v - p.quantizationOrigin) / step);
     while (at(k) > p.valueMax && at(k - 1) >= p.valueMin)
     {
       k -= 1;
@@ -286,6 +292,70 @@ struct RefinementEngine::Impl
       k += 1;
     }
     return at(k);
+  }
+
+  // The live vertices' values quantized again at `step` (by vertex id), as SetQuantizationStep(step) sets
+  // them: a solution of this mesh as it is (solving does not depend on the step), else each vertex's
+  // source, I(p) or I*(p) where that is nearer its current value.
+  std::vector<double>
+  ValuesAtStep(double step) const
+  {
+    std::vector<double> out = values;
+    const bool          fromSolution = parameters.leastSquares && solvedMesh == meshVersion;
+    for (VertexId v = 0; v < mesh.NumberOfVertexIds(); ++v)
+    {
+      if (fromSolution && vertexAlive[v] && std::isfinite(solved[v]))
+      {
+        out[v] = Quantize(std::clamp(solved[v], parameters.valueMin, parameters.valueMax), step);
+      }
+      else if (vertexAlive[v])
+      {
+        const GridPoint p = mesh.Point(v);
+        const uint64_t  voxel = grid.Offset(p[0], p[1], p[2]);
+        double          source = image[voxel];
+        if (parameters.smoothed &&
+            std::abs(values[v] - double(parameters.smoothed[voxel])) < std::abs(values[v] - source))
+        {
+          source = parameters.smoothed[voxel];
+        }
+        out[v] = Quantize(source, step);
+      }
+    }
+    return out;
+  }
+
+  // The live vertices (numbered densely in the order the cells by id first name them), `vertexValues`
+  // theirs (by vertex id), and the cells.
+  Approximation
+  ApproximationOf(const std::vector<double> & vertexValues) const
+  {
+    Approximation a;
+    a.grid = grid;
+    a.scale = parameters.scale;
+    // Vertex ids have holes once vertices were removed: number the live ones densely.
+    std::vector<uint32_t> index(mesh.NumberOfVertexIds(), NoCell);
+    auto                  indexOf = [&](uint32_t v) {
+      if (index[v] == NoCell)
+      {
+        index[v] = uint32_t(a.points.size());
+        a.points.push_back(mesh.Point(v));
+        a.values.push_back(vertexValues[v]);
+      }
+      return index[v];
+    };
+    // Sized at once: grown by doubling, the points and values would take up to twice their size, and
+    // rate control codes them at the encoder's peak.
+    a.points.reserve(mesh.NumberOfVertices());
+    a.values.reserve(mesh.NumberOfVertices());
+    a.tetrahedra.reserve(mesh.NumberOfFiniteCells());
+    ForEachIdRange([&](const std::vector<Tetrahedralization::Cell> & cells) {
+      for (const auto & c : cells)
+      {
+        a.tetrahedra.push_back(
+          { indexOf(c.vertices[0]), indexOf(c.vertices[1]), indexOf(c.vertices[2]), indexOf(c.vertices[3]) });
+      }
+    });
+    return a;
   }
 
   double
@@ -460,12 +530,19 @@ struct RefinementEngine::Impl
   CellScan
   Scan(const Tetrahedralization::Cell & c, const TPixel * data) const
   {
+    return Scan(c, data, values);
+  }
+  // The same with other vertex values (by vertex id).
+  template <typename TPixel>
+  CellScan
+  Scan(const Tetrahedralization::Cell & c, const TPixel * data, const std::vector<double> & vertexValues) const
+  {
     std::array<GridPoint, 4> p;
     std::array<double, 4>    v;
     for (int i = 0; i < 4; ++i)
     {
       p[i] = mesh.Point(c.vertices[i]);
-      v[i] = values[c.vertices[i]];
+      v[i] = vertexValues[c.vertices[i]];
     }
     const CanonicalTetrahedron t(p, v);
     const LinearFunction       L(t);
@@ -1162,29 +1239,39 @@ RefinementEngine::SetQuantizationStep(double step)
     throw std::invalid_argument("RefinementEngine: the quantization step must be positive, got " +
                                 std::to_string(step));
   }
+  d.values = d.ValuesAtStep(step);
   d.parameters.quantizationStep = step;
-  // A solution of this mesh is quantized again as it is: solving does not depend on the step.
-  const bool fromSolution = d.parameters.leastSquares && d.solvedMesh == d.meshVersion;
-  for (VertexId v = 0; v < d.mesh.NumberOfVertexIds(); ++v)
-  {
-    if (fromSolution && d.vertexAlive[v] && std::isfinite(d.solved[v]))
-    {
-      d.values[v] = d.Quantize(std::clamp(d.solved[v], d.parameters.valueMin, d.parameters.valueMax));
-    }
-    else if (d.vertexAlive[v])
-    {
-      const GridPoint p = d.mesh.Point(v);
-      const uint64_t  voxel = d.grid.Offset(p[0], p[1], p[2]);
-      double          source = d.image[voxel];
-      if (d.parameters.smoothed &&
-          std::abs(d.values[v] - double(d.parameters.smoothed[voxel])) < std::abs(d.values[v] - source))
-      {
-        source = d.parameters.smoothed[voxel];
-      }
-      d.values[v] = d.Quantize(source);
-    }
-  }
   d.RescanAll();
+}
+
+Approximation
+RefinementEngine::GetApproximationAtStep(double step, double & squaredError) const
+{
+  const Impl & d = *m_Impl;
+  if (!(step > 0.0))
+  {
+    throw std::invalid_argument("RefinementEngine: the quantization step must be positive, got " +
+                                std::to_string(step));
+  }
+  const std::vector<double> values = d.ValuesAtStep(step);
+  // The cells' errors summed by id, as RescanAll() sums them into the engine's own.
+  double              sum = 0.0;
+  std::vector<double> sse;
+  d.ForEachIdRange(
+    [&](const std::vector<Tetrahedralization::Cell> & cells) {
+      const auto order = d.SpatialOrder(cells, 0, cells.size());
+      sse.resize(cells.size());
+      ParallelFor(order.size(), 64, [&](std::size_t k) {
+        sse[order[k]] = d.pixels->Visit([&](const auto * data) { return d.Scan(cells[order[k]], data, values).sse; });
+      });
+      for (const double e : sse)
+      {
+        sum += e;
+      }
+    },
+    Impl::chunk / 4);
+  squaredError = std::max(0.0, sum);
+  return d.ApproximationOf(values);
 }
 
 namespace
@@ -1560,34 +1647,7 @@ RefinementEngine::GetParameters() const
 Approximation
 RefinementEngine::GetApproximation() const
 {
-  const Impl &  d = *m_Impl;
-  Approximation a;
-  a.grid = d.grid;
-  a.scale = d.parameters.scale;
-  // Vertex ids have holes once vertices were removed: number the live ones densely.
-  std::vector<uint32_t> index(d.mesh.NumberOfVertexIds(), NoCell);
-  auto                  indexOf = [&](uint32_t v) {
-    if (index[v] == NoCell)
-    {
-      index[v] = uint32_t(a.points.size());
-      a.points.push_back(d.mesh.Point(v));
-      a.values.push_back(d.values[v]);
-    }
-    return index[v];
-  };
-  // Sized at once: grown by doubling, the points and values would take up to twice their size, and
-  // rate control codes them at the encoder's peak.
-  a.points.reserve(d.mesh.NumberOfVertices());
-  a.values.reserve(d.mesh.NumberOfVertices());
-  a.tetrahedra.reserve(d.mesh.NumberOfFiniteCells());
-  d.ForEachIdRange([&](const std::vector<Tetrahedralization::Cell> & cells) {
-    for (const auto & c : cells)
-    {
-      a.tetrahedra.push_back(
-        { indexOf(c.vertices[0]), indexOf(c.vertices[1]), indexOf(c.vertices[2]), indexOf(c.vertices[3]) });
-    }
-  });
-  return a;
+  return m_Impl->ApproximationOf(m_Impl->values);
 }
 
 std::vector<RefinementEngine::CellStatistics>

@@ -485,6 +485,38 @@ TEST(RefinementEngine, QuantizedValuesStayOnTheLatticeAndDecodeExactly)
   }
 }
 
+/** A step trial gives what SetQuantizationStep() then gives, to the bit, and leaves the engine as it was:
+ * with least squares (the solution quantized again) and without (each vertex's source). */
+TEST(RefinementEngine, StepTrialsGiveTheSetStepsResultAndChangeNothing)
+{
+  const GridSize           grid{ 34, 30, 26 };
+  const std::vector<float> image = PhantomVolume(grid);
+  const std::vector<float> smoothed = Smoothed(image, grid);
+  for (Mode mode : { Mode::Silva, Mode::Best })
+  {
+    RefinementParameters p = ParametersFor(mode, smoothed);
+    p.quantizationStep = 2.0;
+    RefinementEngine engine(image.data(), grid, p);
+    engine.Approximate(300);
+    const Approximation before = engine.GetApproximation();
+    const double        beforeError = engine.GetSquaredError();
+    double              error = -1.0;
+    const Approximation trial = engine.GetApproximationAtStep(5.0, error);
+    const Approximation after = engine.GetApproximation();
+    EXPECT_EQ(after.values, before.values) << ModeName(mode);
+    EXPECT_EQ(after.tetrahedra, before.tetrahedra) << ModeName(mode);
+    EXPECT_EQ(engine.GetSquaredError(), beforeError) << ModeName(mode);
+    EXPECT_NE(trial.values, before.values) << ModeName(mode); // the step changed them
+    engine.SetQuantizationStep(5.0);
+    const Approximation set = engine.GetApproximation();
+    EXPECT_EQ(trial.points, set.points) << ModeName(mode);
+    EXPECT_EQ(trial.values, set.values) << ModeName(mode);
+    EXPECT_EQ(trial.tetrahedra, set.tetrahedra) << ModeName(mode);
+    EXPECT_EQ(error, engine.GetSquaredError()) << ModeName(mode);
+    EXPECT_THROW(engine.GetApproximationAtStep(0.0, error), std::invalid_argument);
+  }
+}
+
 TEST(RefinementEngine, RefusesBadParameters)
 {
   std::vector<float>   image(64, 1.0f);
