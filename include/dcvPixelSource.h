@@ -20,6 +20,7 @@
 
 #include "DelaunayCompressionExport.h"
 
+#include <cmath>
 #include <cstdint>
 #include <vector>
 
@@ -59,6 +60,48 @@ public:
   operator()(const uint8_t * row, int64_t x) const
   {
     return double(row[x]) + m_Offset; // both integers, their sum exact
+  }
+
+  /** The sums over voxels x0 to x1 of a row that Visit() handed out, of I and of (x - x0) I: the very
+   * doubles of adding each voxel's double in order. On the copy, with a smallest value below 2^20 in
+   * magnitude, every partial sum is an integer below 2^53 (exact either way), so they are summed as
+   * integers, which the compiler vectorizes; else voxel by voxel. */
+  void
+  RowSums(const float * row, int32_t x0, int32_t x1, double & sumI, double & sumUI) const
+  {
+    sumI = 0.0;
+    sumUI = 0.0;
+    for (int32_t x = x0; x <= x1; ++x)
+    {
+      const double value = (*this)(row, x);
+      sumI += value;
+      sumUI += double(x - x0) * value;
+    }
+  }
+  void
+  RowSums(const uint8_t * row, int32_t x0, int32_t x1, double & sumI, double & sumUI) const
+  {
+    if (!(std::abs(m_Offset) < double(1 << 20)))
+    {
+      sumI = 0.0;
+      sumUI = 0.0;
+      for (int32_t x = x0; x <= x1; ++x)
+      {
+        const double value = (*this)(row, x);
+        sumI += value;
+        sumUI += double(x - x0) * value;
+      }
+      return;
+    }
+    int64_t bytes = 0, weighted = 0;
+    for (int32_t x = x0; x <= x1; ++x)
+    {
+      bytes += row[x];
+      weighted += int64_t(x - x0) * row[x];
+    }
+    const int64_t n = int64_t(x1) - x0 + 1, offset = int64_t(m_Offset);
+    sumI = double(bytes + n * offset);
+    sumUI = double(weighted + n * (n - 1) / 2 * offset);
   }
 
   /** Bytes a voxel of the copy: 1, or 0 (the floats are read). */

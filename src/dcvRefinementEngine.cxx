@@ -1496,14 +1496,8 @@ RefinementEngine::OptimizeValues()
         // per voxel up to rounding; the files of the dev volumes came out the same.
         d.pixels->Visit([&](const auto * data) {
           ForEachSpanPrefetched(d.grid, p, data, nullptr, nullptr, [&](int32_t y, int32_t z, int32_t x0, int32_t x1) {
-            const auto * row = data + d.grid.Offset(0, y, z);
-            double       sumI = 0.0, sumUI = 0.0;
-            for (int32_t x = x0; x <= x1; ++x)
-            {
-              const double value = (*d.pixels)(row, x);
-              sumI += value;
-              sumUI += double(x - x0) * value;
-            }
+            double sumI, sumUI;
+            d.pixels->RowSums(data + d.grid.Offset(0, y, z), x0, x1, sumI, sumUI);
             const double count = double(x1 - x0 + 1);
             const double sumU = count * (count - 1.0) / 2.0;
             const double sumUU = (count - 1.0) * count * (2.0 * count - 1.0) / 6.0;

@@ -20,6 +20,7 @@
 
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <cmath>
 #include <cstring>
 #include <limits>
@@ -95,4 +96,37 @@ TEST(PixelSource, ReadsOtherVolumesAsTheirFloats)
   const PixelSource none(nullptr, 0);
   EXPECT_EQ(none.BytesPerVoxel(), 0u);
 }
+
+/** A row's sums, as the least squares read them, against adding each voxel's double in order: the same
+ * bits, on the copy (integer sums; offsets of either sign, 0, and one too large for them) and on floats. */
+TEST(PixelSource, RowSumsAreTheVoxelByVoxelSums)
+{
+  const std::size_t n = 3000;
+  for (const double lowest : { 0.0, -1024.0, 37.0, -1048000.0, 3.0e6, 1.5 })
+  {
+    const std::vector<float> image = Integers(lowest, lowest == 1.5 ? 300.0 : 255.0, n);
+    const PixelSource        source(image.data(), image.size());
+    std::mt19937             random(11);
+    std::size_t              differ = 0;
+    source.Visit([&](const auto * row) {
+      for (int trial = 0; trial < 2000; ++trial)
+      {
+        const int32_t x0 = int32_t(random() % n);
+        const int32_t x1 = std::min<int32_t>(int32_t(n) - 1, x0 + int32_t(random() % (trial < 1000 ? 16 : 2500)));
+        double        sumI = 0.0, sumUI = 0.0;
+        for (int32_t x = x0; x <= x1; ++x)
+        {
+          sumI += double(image[std::size_t(x)]);
+          sumUI += double(x - x0) * double(image[std::size_t(x)]);
+        }
+        double rowI = -1.0, rowUI = -1.0;
+        source.RowSums(row, x0, x1, rowI, rowUI);
+        differ +=
+          std::memcmp(&rowI, &sumI, sizeof(double)) == 0 && std::memcmp(&rowUI, &sumUI, sizeof(double)) == 0 ? 0 : 1;
+      }
+    });
+    EXPECT_EQ(differ, 0u) << "smallest value " << lowest << ", " << source.BytesPerVoxel() << " byte(s) a voxel";
+  }
+}
+
 } // namespace
