@@ -138,7 +138,8 @@ CheckOptions(const EncoderOptions & o, const EncoderInput & input)
   const uint64_t voxels = input.header.size.NumberOfVoxels();
   const float *  end = input.voxels + (input.voxels != nullptr ? voxels : 0);
   // Non-finite values would make the quantization origin, the step and the PSNR NaN or infinite.
-  const auto nonFinite = std::count_if(input.voxels, end, [](float v) { return !std::isfinite(v); });
+  const auto nonFinite =
+    ParallelCount(input.voxels, std::size_t(end - input.voxels), [](float v) { return !std::isfinite(v); });
   if (nonFinite > 0)
   {
     throw std::invalid_argument("the volume holds " + std::to_string(nonFinite) +
@@ -169,8 +170,8 @@ CheckOptions(const EncoderOptions & o, const EncoderInput & input)
   {
     // The value coder takes lattice indices k = (v - q0) / q below 2^30 (EncodePayload), q0 the minimum;
     // half of that leaves room for least-squares values beyond the range of the voxels.
-    const auto   range = std::minmax_element(input.voxels, end);
-    const double span = double(*range.second) - double(*range.first);
+    const auto   range = ParallelMinMax(input.voxels, voxels);
+    const double span = double(range.second) - double(range.first);
     const double smallest = span / double(MaximumQuantizationIndex / 2);
     if (o.quantizationStep < smallest)
     {
@@ -179,8 +180,8 @@ CheckOptions(const EncoderOptions & o, const EncoderInput & input)
                     sizeof(text),
                     "at least %g for values from %g to %g (2^29 steps)",
                     smallest,
-                    double(*range.first),
-                    double(*range.second));
+                    double(range.first),
+                    double(range.second));
       char given[32];
       std::snprintf(given, sizeof(given), "%g", o.quantizationStep);
       throw std::invalid_argument(std::string("QuantizationStep (--step) must be ") + text + ", got " + given);
@@ -243,8 +244,8 @@ AutomaticScale(const std::array<double, 3> & spacing)
 double
 PSNRPeak(const EncoderInput & input)
 {
-  const auto range = std::minmax_element(input.voxels, input.voxels + input.header.size.NumberOfVoxels());
-  return PSNRPeak(*range.first, *range.second, EightBit(input.header.pixelType));
+  const auto range = ParallelMinMax(input.voxels, input.header.size.NumberOfVoxels());
+  return PSNRPeak(range.first, range.second, EightBit(input.header.pixelType));
 }
 
 double
@@ -447,15 +448,15 @@ Run(const EncoderInput & input, const EncoderOptions & o, bool coded, std::vecto
   // of the encoding.
   CheckOptions(o, input);
   const uint64_t voxels = grid.NumberOfVoxels();
-  const auto     range = std::minmax_element(input.voxels, input.voxels + voxels);
+  const auto     range = ParallelMinMax(input.voxels, voxels);
   const bool     integer = IsInteger(input.header.pixelType);
 
   RefinementParameters parameters = ParametersForMode(o.mode);
   parameters.alpha = o.alpha;
   std::tie(parameters.valueMin, parameters.valueMax) = ValueRange(input.header.pixelType);
-  parameters.peak = PSNRPeak(*range.first, *range.second, EightBit(input.header.pixelType));
+  parameters.peak = PSNRPeak(range.first, range.second, EightBit(input.header.pixelType));
   parameters.smoothed = UsesSmoothedImage(o.mode) ? input.smoothed : nullptr;
-  parameters.quantizationOrigin = double(*range.first);
+  parameters.quantizationOrigin = double(range.first);
   parameters.scale = o.scale == GridScale{ { 0, 0, 0 } } ? AutomaticScale(input.header.spacing) : o.scale;
   const double targetError =
     o.psnr > 0.0 ? double(voxels) * parameters.peak * parameters.peak / std::pow(10.0, o.psnr / 10.0) : 0.0;
@@ -503,7 +504,7 @@ Run(const EncoderInput & input, const EncoderOptions & o, bool coded, std::vecto
       return WithThreads(threads, [&] {
         const auto       start = std::chrono::steady_clock::now();
         CornersCandidate c =
-          TryCorners(input, header, std::size_t(fileBytes), *range.first, *range.second, parameters.peak);
+          TryCorners(input, header, std::size_t(fileBytes), range.first, range.second, parameters.peak);
         r.timings.residualLayer += std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
         return c;
       });

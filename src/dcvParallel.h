@@ -30,6 +30,8 @@
 #include <algorithm>
 #include <cstddef>
 #include <optional>
+#include <utility>
+#include <vector>
 
 #if defined(__linux__)
 #  include <sys/resource.h>
@@ -79,6 +81,52 @@ void
 ParallelSort(Iterator first, Iterator last)
 {
   tbb::parallel_sort(first, last);
+}
+
+/** Blocks of a pass over a volume's voxels (ParallelMinMax, ParallelCount): a serial pass over 67 MB of
+ * floats was some 15 ms on norm-256, and the encoder made several before its first point. */
+constexpr std::size_t PassBlock = std::size_t(1) << 20;
+
+/** The values std::minmax_element gives over [data, data + n) (n > 0), on the threads: each block's, then
+ * the blocks' in order (the first smallest, the last largest), so the same values, -0 and +0 included,
+ * wherever no value is NaN. */
+template <typename T>
+std::pair<T, T>
+ParallelMinMax(const T * data, std::size_t n)
+{
+  const std::size_t            blocks = (n + PassBlock - 1) / PassBlock;
+  std::vector<std::pair<T, T>> ranges(blocks);
+  ParallelFor(blocks, 1, [&](std::size_t b) {
+    const T *  first = data + b * PassBlock;
+    const auto range = std::minmax_element(first, first + std::min(PassBlock, n - b * PassBlock));
+    ranges[b] = { *range.first, *range.second };
+  });
+  std::pair<T, T> out = ranges.at(0);
+  for (std::size_t b = 1; b < blocks; ++b)
+  {
+    if (ranges[b].first < out.first)
+      out.first = ranges[b].first;
+    if (!(ranges[b].second < out.second))
+      out.second = ranges[b].second;
+  }
+  return out;
+}
+
+/** The number of values of [data, data + n) that satisfy `predicate`, on the threads. */
+template <typename T, typename P>
+std::size_t
+ParallelCount(const T * data, std::size_t n, P && predicate)
+{
+  const std::size_t        blocks = (n + PassBlock - 1) / PassBlock;
+  std::vector<std::size_t> counts(blocks);
+  ParallelFor(blocks, 1, [&](std::size_t b) {
+    const T * first = data + b * PassBlock;
+    counts[b] = std::size_t(std::count_if(first, first + std::min(PassBlock, n - b * PassBlock), predicate));
+  });
+  std::size_t total = 0;
+  for (const std::size_t c : counts)
+    total += c;
+  return total;
 }
 
 /** The number of threads ParallelFor uses here (that of the current task arena). */

@@ -28,14 +28,14 @@ PixelSource::PixelSource(const float * image, uint64_t voxels)
 {
   if (image == nullptr || voxels == 0)
     return;
-  const auto   range = std::minmax_element(image, image + voxels);
-  const float  lowest = *range.first;
-  const double span = double(*range.second) - double(lowest);
+  const auto   range = ParallelMinMax(image, voxels); // a NaN anywhere: the floats (below), whatever it gives
+  const float  lowest = range.first;
+  const double span = double(range.second) - double(lowest);
   // (NaN anywhere: the floats; a NaN minimum or maximum makes the span NaN.)
   if (!(span < 256.0) || !(std::abs(lowest) < 1e18f))
     return;
   // Within that range a float is an integer when its truncation gives it back; NaN is never cast.
-  if (!std::all_of(image, image + voxels, [](float v) { return v == v && double(int64_t(v)) == double(v); }))
+  if (ParallelCount(image, voxels, [](float v) { return !(v == v && double(int64_t(v)) == double(v)); }) > 0)
     return;
   m_Offset = double(lowest);
   m_Bytes.resize(voxels);

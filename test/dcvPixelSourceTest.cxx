@@ -16,6 +16,7 @@
  *
  *=========================================================================*/
 // The engine's view of the image: a narrow copy where the voxels allow it, read as the very floats.
+#include "dcvParallel.h"
 #include "dcvPixelSource.h"
 
 #include <gtest/gtest.h>
@@ -127,6 +128,46 @@ TEST(PixelSource, RowSumsAreTheVoxelByVoxelSums)
     });
     EXPECT_EQ(differ, 0u) << "smallest value " << lowest << ", " << source.BytesPerVoxel() << " byte(s) a voxel";
   }
+}
+
+
+/** The passes over the voxels before the encoder's first point, on every thread: std::minmax_element's
+ * values (the first smallest, the last largest: -0 against +0 decides the quantization origin's bits) and
+ * std::count_if's count, whatever the threads, over several blocks and a short last one. */
+TEST(Parallel, MinMaxAndCountAreTheSerialOnes)
+{
+  const std::size_t  n = 3 * dcv::PassBlock + 12345;
+  std::mt19937       random(5);
+  std::vector<float> data(n);
+  for (auto & v : data)
+    v = float(int(random() % 2001) - 1000);
+  // The smallest ties across blocks as -0 and +0, where the first one's sign must show; the largest ties too.
+  for (const float zero : { -0.0f, 0.0f })
+  {
+    std::vector<float> z(data.size());
+    for (std::size_t i = 0; i < z.size(); ++i)
+      z[i] = std::fabs(data[i]) + 1.0f;
+    z[7] = zero;
+    z[dcv::PassBlock + 3] = -zero;
+    z[2 * dcv::PassBlock] = 2001.0f;
+    z[n - 1] = 2001.0f;
+    for (unsigned threads : { 1u, 2u, 3u })
+    {
+      const auto got = dcv::WithThreads(threads, [&] { return dcv::ParallelMinMax(z.data(), z.size()); });
+      const auto want = std::minmax_element(z.begin(), z.end());
+      EXPECT_EQ(std::signbit(got.first), std::signbit(*want.first)) << threads << " threads";
+      EXPECT_EQ(got.first, *want.first);
+      EXPECT_EQ(got.second, *want.second);
+    }
+  }
+  data[n - 1] = -5000.0f;
+  data[dcv::PassBlock] = 5000.0f;
+  const auto got = dcv::ParallelMinMax(data.data(), n);
+  EXPECT_EQ(got.first, -5000.0f);
+  EXPECT_EQ(got.second, 5000.0f);
+  const auto odd = [](float v) { return int(v) % 2 != 0; };
+  EXPECT_EQ(dcv::ParallelCount(data.data(), n, odd), std::size_t(std::count_if(data.begin(), data.end(), odd)));
+  EXPECT_EQ(dcv::ParallelCount(data.data(), 1, odd), std::size_t(odd(data[0])));
 }
 
 } // namespace
