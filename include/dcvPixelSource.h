@@ -69,28 +69,14 @@ public:
   void
   RowSums(const float * row, int32_t x0, int32_t x1, double & sumI, double & sumUI) const
   {
-    sumI = 0.0;
-    sumUI = 0.0;
-    for (int32_t x = x0; x <= x1; ++x)
-    {
-      const double value = (*this)(row, x);
-      sumI += value;
-      sumUI += double(x - x0) * value;
-    }
+    VoxelByVoxelSums(row, x0, x1, sumI, sumUI);
   }
   void
   RowSums(const uint8_t * row, int32_t x0, int32_t x1, double & sumI, double & sumUI) const
   {
     if (!(std::abs(m_Offset) < double(1 << 20)))
     {
-      sumI = 0.0;
-      sumUI = 0.0;
-      for (int32_t x = x0; x <= x1; ++x)
-      {
-        const double value = (*this)(row, x);
-        sumI += value;
-        sumUI += double(x - x0) * value;
-      }
+      VoxelByVoxelSums(row, x0, x1, sumI, sumUI);
       return;
     }
     int64_t bytes = 0, weighted = 0;
@@ -112,6 +98,20 @@ public:
   }
 
 private:
+  template <typename T>
+  void
+  VoxelByVoxelSums(const T * row, int32_t x0, int32_t x1, double & sumI, double & sumUI) const
+  {
+    sumI = 0.0;
+    sumUI = 0.0;
+    for (int32_t x = x0; x <= x1; ++x)
+    {
+      const double value = (*this)(row, x);
+      sumI += value;
+      sumUI += double(x - x0) * value;
+    }
+  }
+
   const float *        m_Image;
   double               m_Offset{ 0.0 };
   std::vector<uint8_t> m_Bytes;

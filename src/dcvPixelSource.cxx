@@ -28,7 +28,7 @@ PixelSource::PixelSource(const float * image, uint64_t voxels)
 {
   if (image == nullptr || voxels == 0)
     return;
-  const auto   range = ParallelMinMax(image, voxels); // a NaN anywhere: the floats (below), whatever it gives
+  const auto   range = ParallelMinMax(image, voxels);
   const float  lowest = range.first;
   const double span = double(range.second) - double(lowest);
   // (NaN anywhere: the floats; a NaN minimum or maximum makes the span NaN.)

@@ -347,10 +347,7 @@ ApproximateToBudget(RefinementEngine & engine, std::size_t payloadBytes, double 
     }
     // The law of the final fit starts from the chosen step's state.
     fitted.assign(1, { count, double(result.payload.size()) });
-    if (bestMultiple != 1.0)
-    {
-      shown.Done(StepTrialWork * count, workLeft(fitted, false));
-    }
+    shown.Done(bestMultiple != 1.0 ? StepTrialWork * count : 0.0, workLeft(fitted, false));
     result.step = bestMultiple * step;
     fit();
   }

@@ -1341,7 +1341,7 @@ NormalPattern(int n, const std::vector<std::array<int, 4>> & cells)
 
 /** The position of `row` among the sorted rows inner[first, last) of a column, which hold it: a binary
  * search whose steps add, not branch (std::lower_bound's branch, mispredicted at every other step, was
- * two thirds of the matrix's assembly once the cells came in spatial order). */
+ * half of adding the blocks once the cells came in spatial order). */
 inline int
 RowPosition(const int * inner, int first, int last, int row)
 {
