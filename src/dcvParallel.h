@@ -87,6 +87,18 @@ ParallelSort(Iterator first, Iterator last)
  * floats was some 15 ms on norm-256, and the encoder made several before its first point. */
 constexpr std::size_t PassBlock = std::size_t(1) << 20;
 
+/** f(b, first, last) for each block b of PassBlock values of [data, data + n), on the threads. */
+template <typename T, typename F>
+void
+ForEachPassBlock(const T * data, std::size_t n, F && f)
+{
+  const std::size_t blocks = (n + PassBlock - 1) / PassBlock;
+  ParallelFor(blocks, 1, [&](std::size_t b) {
+    const T * first = data + b * PassBlock;
+    f(b, first, first + std::min(PassBlock, n - b * PassBlock));
+  });
+}
+
 /** The values std::minmax_element gives over [data, data + n) (n > 0), on the threads: each block's, then
  * the blocks' in order (the first smallest, the last largest), so the same values, -0 and +0 included,
  * wherever no value is NaN. */
@@ -94,15 +106,13 @@ template <typename T>
 std::pair<T, T>
 ParallelMinMax(const T * data, std::size_t n)
 {
-  const std::size_t            blocks = (n + PassBlock - 1) / PassBlock;
-  std::vector<std::pair<T, T>> ranges(blocks);
-  ParallelFor(blocks, 1, [&](std::size_t b) {
-    const T *  first = data + b * PassBlock;
-    const auto range = std::minmax_element(first, first + std::min(PassBlock, n - b * PassBlock));
+  std::vector<std::pair<T, T>> ranges((n + PassBlock - 1) / PassBlock);
+  ForEachPassBlock(data, n, [&](std::size_t b, const T * first, const T * last) {
+    const auto range = std::minmax_element(first, last);
     ranges[b] = { *range.first, *range.second };
   });
   std::pair<T, T> out = ranges.at(0);
-  for (std::size_t b = 1; b < blocks; ++b)
+  for (std::size_t b = 1; b < ranges.size(); ++b)
   {
     if (ranges[b].first < out.first)
       out.first = ranges[b].first;
@@ -117,11 +127,9 @@ template <typename T, typename P>
 std::size_t
 ParallelCount(const T * data, std::size_t n, P && predicate)
 {
-  const std::size_t        blocks = (n + PassBlock - 1) / PassBlock;
-  std::vector<std::size_t> counts(blocks);
-  ParallelFor(blocks, 1, [&](std::size_t b) {
-    const T * first = data + b * PassBlock;
-    counts[b] = std::size_t(std::count_if(first, first + std::min(PassBlock, n - b * PassBlock), predicate));
+  std::vector<std::size_t> counts((n + PassBlock - 1) / PassBlock);
+  ForEachPassBlock(data, n, [&](std::size_t b, const T * first, const T * last) {
+    counts[b] = std::size_t(std::count_if(first, last, predicate));
   });
   std::size_t total = 0;
   for (const std::size_t c : counts)

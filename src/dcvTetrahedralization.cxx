@@ -93,6 +93,13 @@ using CgalPoint = Kernel::Point_3;
 // A cell's sorted vertex ids, the first two and the last two in one integer each: compared as a pair.
 using KeyedCell = std::pair<std::pair<uint64_t, uint64_t>, CellHandle>;
 
+/** The cell record of a finite CGAL cell under the id `id`. */
+Tetrahedralization::Cell
+CellOf(Tetrahedralization::CellId id, const CellHandle & c)
+{
+  return { id, { c->vertex(0)->info(), c->vertex(1)->info(), c->vertex(2)->info(), c->vertex(3)->info() } };
+}
+
 CgalPoint
 ToCgal(const GridPoint & p, const GridScale & s)
 {
@@ -145,8 +152,7 @@ struct Tetrahedralization::Impl
     cells.push_back(c);
     if (created)
     {
-      created->push_back(
-        Cell{ id, { c->vertex(0)->info(), c->vertex(1)->info(), c->vertex(2)->info(), c->vertex(3)->info() } });
+      created->push_back(CellOf(id, c));
     }
   }
 
@@ -411,8 +417,7 @@ Tetrahedralization::IncidentCells(VertexId id, std::vector<Cell> & out) const
   m_Impl->ForEachIncident(id, [&out](const CellHandle & c) {
     if (c->info().Id() != NoCell)
     {
-      out.push_back(Cell{ c->info().Id(),
-                          { c->vertex(0)->info(), c->vertex(1)->info(), c->vertex(2)->info(), c->vertex(3)->info() } });
+      out.push_back(CellOf(c->info().Id(), c));
     }
   });
 }
@@ -506,8 +511,7 @@ Tetrahedralization::FiniteCells(CellId first, CellId last, std::vector<Cell> & o
     {
       if (const CellHandle & c = cells[id]; c != CellHandle())
       {
-        out[at++] =
-          Cell{ id, { c->vertex(0)->info(), c->vertex(1)->info(), c->vertex(2)->info(), c->vertex(3)->info() } };
+        out[at++] = CellOf(id, c);
       }
     }
   });
@@ -524,7 +528,7 @@ Tetrahedralization::FiniteCells(const CellId * ids, std::size_t count, std::vect
     {
       throw std::invalid_argument("Tetrahedralization: no live cell " + std::to_string(ids[i]));
     }
-    out[i] = Cell{ ids[i], { c->vertex(0)->info(), c->vertex(1)->info(), c->vertex(2)->info(), c->vertex(3)->info() } };
+    out[i] = CellOf(ids[i], c);
   });
 }
 
