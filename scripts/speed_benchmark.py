@@ -4,6 +4,7 @@ in one run: the figures of the speed targets (docs/profile.md).
 
 Usage: /usr/bin/python3 scripts/speed_benchmark.py [--volume norm-256.nrrd] [--bpv 0.03125 0.25]
                                                    [--runs 3] [--work DIR]
+                                                   [--memory dicom-ct-brain-5mm] [--memory-bpv 0.125]
 
 For each rate R (budget B = floor(R x voxels / 8) bytes):
   encode  `dcv compress VOLUME --bpv R` against x265 (--preset slower --tune psnr, the slices as the frames
@@ -11,6 +12,8 @@ For each rate R (budget B = floor(R x voxels / 8) bytes):
           (the same peer settings as the rate-distortion table);
   decode  `dcv decompress OUT.dcv OUT.nrrd --no-compression` against `opj_decompress` of OpenJPEG's best
           mosaic of the slices that fits B (rd_benchmark's j2k-mosaic), to a PGM.
+and, for the memory target, `dcv compress MEMORY --bpv 0.125` (the 5 mm CT series, a DICOM directory in
+--data; `--memory none` skips it) run --runs times alone: its peak resident memory in bytes a voxel.
 The settings are searched first, untimed. Then the two commands of a pair run in turn (A B A B ..., after
 one untimed pair), each process timed from outside: wall seconds, CPU seconds (user + system) and peak
 resident memory from wait4(). The table gives each command's medians and the median of the pairs' wall
@@ -18,7 +21,7 @@ ratios dcv / peer with their range: pairs in turn keep the ratio fair while the 
 
 Needs python3-numpy (call Debian's /usr/bin/python3), x265, opj_compress and opj_decompress
 (libopenjp2-tools), /usr/bin/time (package time) and build/tools/dcv/dcv. Exits 0 with a message when the volume is absent (../shared
-is not there). norm-256 at 0.03125 and 0.25 bpv: about 6 minutes on 2 cores.
+is not there). norm-256 at 0.03125 and 0.25 bpv and the memory job: about 10 minutes on 2 cores.
 """
 import argparse
 import os
@@ -78,6 +81,38 @@ def row(volume, bpv, job, peer, a, b, ratios):
             f"({min(ratios):.2f} to {max(ratios):.2f}) |")
 
 
+def voxels_of(dcv, path):
+    """The voxel count of a .dcv file, from `dcv info`'s size line."""
+    info = subprocess.run([dcv, "info", path], capture_output=True, text=True, check=True).stdout
+    for line in info.splitlines():
+        if line.startswith("size:"):
+            x, y, z = (int(n) for n in line.split()[1:4])
+            return x * y * z
+    raise SystemExit(f"speed_benchmark: no size in `dcv info {path}`")
+
+
+def memory_job(args, work):
+    """The row of `dcv compress --memory --bpv --memory-bpv` run --runs times (after one untimed run):
+    medians of wall seconds and peak MiB, and the peak in bytes a voxel (median, min to max). None when
+    skipped or absent."""
+    if args.memory == "none":
+        return None
+    source = os.path.join(args.data, args.memory)
+    if not os.path.exists(source):
+        print(f"speed_benchmark: {source} is absent: no memory figure", file=sys.stderr)
+        return None
+    here = os.path.join(work, "memory")
+    os.makedirs(here, exist_ok=True)
+    out = os.path.join(here, "out.dcv")
+    command = [args.dcv, "compress", source, out, "--bpv", repr(args.memory_bpv), "--force", "-q"]
+    print(f"  memory: dcv compress {args.memory} --bpv {args.memory_bpv:g}", file=sys.stderr)
+    runs = [timed(command, os.path.join(here, "ours.log")) for _ in range(args.runs + 1)][1:]
+    voxels = voxels_of(args.dcv, out)
+    per_voxel = [r[2] * 1048576.0 / voxels for r in runs]
+    return (f"| {args.memory} | {args.memory_bpv:g} | {voxels} | {median(runs, 0):.3f} | {median(runs, 2):.0f} | "
+            f"**{statistics.median(per_voxel):.1f}** ({min(per_voxel):.1f} to {max(per_voxel):.1f}) |")
+
+
 def main():
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("--volume", default="norm-256.nrrd", help="a NRRD of integer voxels in --data")
@@ -86,6 +121,9 @@ def main():
     ap.add_argument("--runs", type=int, default=3, help="timed pairs per job (default 3)")
     ap.add_argument("--dcv", default=os.path.join(ROOT, "build", "tools", "dcv", "dcv"))
     ap.add_argument("--work", help="work directory (default: a temporary one, removed at the end)")
+    ap.add_argument("--memory", default="dicom-ct-brain-5mm",
+                    help="a volume or DICOM series in --data whose peak memory is measured ('none': skipped)")
+    ap.add_argument("--memory-bpv", type=float, default=0.125)
     args = ap.parse_args()
     if args.runs < 1:
         ap.error("--runs must be at least 1")
@@ -135,6 +173,7 @@ def main():
                                  args.runs, here)
             setting = mosaic["setting"].split(";")[0]
             lines.append(row(args.volume, bpv, "decode", f"opj_decompress ({setting})", a, b, ratios))
+        memory = memory_job(args, work)
     finally:
         if not args.work:
             shutil.rmtree(work, ignore_errors=True)
@@ -144,6 +183,10 @@ def main():
     print("|---|---:|---|---:|---:|---:|---|---:|---:|---:|---|")
     for line in lines:
         print(line)
+    if memory:
+        print("\n| volume | bpv | voxels | dcv wall s | dcv peak MiB | bytes a voxel |")
+        print("|---|---:|---:|---:|---:|---|")
+        print(memory)
     return 0
 
 
