@@ -91,6 +91,11 @@ StepMultiples()
   static const std::vector<double> multiples{ 1.0, 2.0, 4.0 };
   return multiples;
 }
+/** FittedCount from one state: the bits a point fall this many times as fast with the count as they do
+ * over an arbitrary subset of the voxels (log2(voxels / count) + c), as measured between the first run
+ * and the fitted count on the 40 dev runs (docs/profile.md, fifth session of 12-05): median 1.55, 1.07 to
+ * 2.25 over the 12 runs whose count moved by more than 10%. */
+constexpr double SubsetLawFactor = 1.55;
 /** Quality target: the count is accepted when within this share of the smallest count that reaches it. */
 constexpr double QualityCountTolerance = 0.01;
 /** Quality target: at most this many Resize() steps before giving up. */
@@ -99,9 +104,10 @@ constexpr unsigned MaximumQualitySteps = 40;
 
 /** The point count whose payload the size law puts at `target` bytes, from the (count, size) states of
  * one fit (the last is the current one; all with one quantization step): between the last two states
- * of different counts, size ~ count^beta with beta measured there; from one state, the law of an
- * arbitrary subset of `voxels`, bits per point = log2(voxels / count) + c with c measured at it, whose
- * local exponent is 1 - 1 / (ln 2 x bits per point). beta is kept in [0.5, 1.5]. Rate control uses it to
+ * of different counts, size ~ count^beta with beta measured there; from one state, beta = 1 -
+ * SubsetLawFactor / (ln 2 x bits per point), SubsetLawFactor times the fall of the law of an arbitrary
+ * subset of `voxels` (bits per point = log2(voxels / count) + c, whose local exponent is 1 - 1 / (ln 2 x
+ * bits per point)). beta is kept in [0.5, 1.5]. Rate control uses it to
  * estimate the work left for its progress; its fit keeps the bits-per-point correction (beta 1), since
  * fits by this law, quicker on norm-256 at 0.25 bpv (beta near 0.65 there), gave other meshes and
  * 0.004 to 0.07 dB less on 4 to 7 of the 40 dev runs (docs/profile.md, session of 12-05). */

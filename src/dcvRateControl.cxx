@@ -49,7 +49,7 @@ FittedCount(const std::vector<std::pair<double, double>> & states, double voxels
   if (!(beta > 0.0))
   {
     const double bitsPerPoint = size * 8.0 / count;
-    beta = bitsPerPoint > 1.0 ? 1.0 - 1.0 / (std::log(2.0) * bitsPerPoint) : 1.0;
+    beta = bitsPerPoint > 1.0 ? 1.0 - SubsetLawFactor / (std::log(2.0) * bitsPerPoint) : 1.0;
   }
   beta = std::clamp(beta, 0.5, 1.5);
   return std::clamp(count * std::pow(target / size, 1.0 / beta), 8.0, std::max(8.0, voxels));

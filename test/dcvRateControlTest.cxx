@@ -45,10 +45,11 @@ TEST(RateControl, FittedCountFollowsTheLawBetweenTheLastTwoStates)
               1e-9);
 }
 
-TEST(RateControl, FittedCountFromOneStateIsTheLawOfASubset)
+TEST(RateControl, FittedCountFromOneStateIsTheMeasuredFallOfTheLawOfASubset)
 {
-  // 10 bits a point: the local exponent of n (log2(V / n) + c) is 1 - 1 / (10 ln 2).
-  const double beta = 1.0 - 1.0 / (10.0 * std::log(2.0));
+  // 10 bits a point: the local exponent of n (log2(V / n) + c) is 1 - 1 / (10 ln 2); the bits a point
+  // fall SubsetLawFactor times as fast.
+  const double beta = 1.0 - RateControl::SubsetLawFactor / (10.0 * std::log(2.0));
   EXPECT_NEAR(FittedCount({ { 800.0, 1000.0 } }, 1e6, 1500.0), 800.0 * std::pow(1.5, 1.0 / beta), 1e-6);
   // Further than a step of the old correction (one bits-per-point): 800 x 1.5 = 1200.
   EXPECT_GT(FittedCount({ { 800.0, 1000.0 } }, 1e6, 1500.0), 1200.0);
