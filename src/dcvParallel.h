@@ -87,13 +87,19 @@ ParallelSort(Iterator first, Iterator last)
  * floats was some 15 ms on norm-256, and the encoder made several before its first point. */
 constexpr std::size_t PassBlock = std::size_t(1) << 20;
 
+/** The blocks of PassBlock values that n values make. */
+constexpr std::size_t
+PassBlocks(std::size_t n)
+{
+  return (n + PassBlock - 1) / PassBlock;
+}
+
 /** f(b, first, last) for each block b of PassBlock values of [data, data + n), on the threads. */
 template <typename T, typename F>
 void
 ForEachPassBlock(const T * data, std::size_t n, F && f)
 {
-  const std::size_t blocks = (n + PassBlock - 1) / PassBlock;
-  ParallelFor(blocks, 1, [&](std::size_t b) {
+  ParallelFor(PassBlocks(n), 1, [&](std::size_t b) {
     const T * first = data + b * PassBlock;
     f(b, first, first + std::min(PassBlock, n - b * PassBlock));
   });
@@ -106,7 +112,7 @@ template <typename T>
 std::pair<T, T>
 ParallelMinMax(const T * data, std::size_t n)
 {
-  std::vector<std::pair<T, T>> ranges((n + PassBlock - 1) / PassBlock);
+  std::vector<std::pair<T, T>> ranges(PassBlocks(n));
   ForEachPassBlock(data, n, [&](std::size_t b, const T * first, const T * last) {
     const auto range = std::minmax_element(first, last);
     ranges[b] = { *range.first, *range.second };
@@ -127,7 +133,7 @@ template <typename T, typename P>
 std::size_t
 ParallelCount(const T * data, std::size_t n, P && predicate)
 {
-  std::vector<std::size_t> counts((n + PassBlock - 1) / PassBlock);
+  std::vector<std::size_t> counts(PassBlocks(n));
   ForEachPassBlock(data, n, [&](std::size_t b, const T * first, const T * last) {
     counts[b] = std::size_t(std::count_if(first, last, predicate));
   });

@@ -296,10 +296,15 @@ struct RefinementEngine::Impl
 
   // The live vertices' values quantized again at `step` (by vertex id), as SetQuantizationStep(step) sets
   // them: a solution of this mesh as it is (solving does not depend on the step), else each vertex's
-  // source, I(p) or I*(p) where that is nearer its current value.
+  // source, I(p) or I*(p) where that is nearer its current value. Throws unless the step is positive.
   std::vector<double>
   ValuesAtStep(double step) const
   {
+    if (!(step > 0.0))
+    {
+      throw std::invalid_argument("RefinementEngine: the quantization step must be positive, got " +
+                                  std::to_string(step));
+    }
     std::vector<double> out = values;
     const bool          fromSolution = parameters.leastSquares && solvedMesh == meshVersion;
     for (VertexId v = 0; v < mesh.NumberOfVertexIds(); ++v)
@@ -1246,12 +1251,7 @@ void
 RefinementEngine::SetQuantizationStep(double step)
 {
   Impl & d = *m_Impl;
-  if (!(step > 0.0))
-  {
-    throw std::invalid_argument("RefinementEngine: the quantization step must be positive, got " +
-                                std::to_string(step));
-  }
-  d.values = d.ValuesAtStep(step);
+  d.values = d.ValuesAtStep(step); // checks the step before anything changes
   d.parameters.quantizationStep = step;
   d.RescanAll();
 }
@@ -1259,12 +1259,7 @@ RefinementEngine::SetQuantizationStep(double step)
 Approximation
 RefinementEngine::GetApproximationAtStep(double step, double & squaredError) const
 {
-  const Impl & d = *m_Impl;
-  if (!(step > 0.0))
-  {
-    throw std::invalid_argument("RefinementEngine: the quantization step must be positive, got " +
-                                std::to_string(step));
-  }
+  const Impl &              d = *m_Impl;
   const std::vector<double> values = d.ValuesAtStep(step);
   // The cells' errors summed by id, as RescanAll() sums them into the engine's own.
   double sum = 0.0;
