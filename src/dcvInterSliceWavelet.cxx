@@ -23,6 +23,7 @@
 #include <limits>
 #include <stdexcept>
 #include <string>
+#include <type_traits>
 
 namespace dcv
 {
@@ -63,6 +64,19 @@ Unweigh(int64_t c, int64_t w, double inverse)
     r -= den;
   }
   return q;
+}
+
+/** Unweigh for |c| <= SmallSample (InverseRows in int32), without integers of 64 bits nor a branch, so
+ * that it vectorizes (it was half of the synthesis). The floor of c 4096 / w + 1/2, whose fraction is a
+ * multiple of 1 / (2 w) > 2^-16, is computed in double within 2^-29 (|c 4096 / w| <= 2^20, a sum below
+ * 2^23, with or without a fused multiply-add); a bias of 2^-20 then keeps it inside the same integer, and
+ * an offset of 2^22 makes the truncation the floor. */
+int32_t
+UnweighSmall(int32_t c, double scale)
+{
+  constexpr double offset = 4194304.0;                  // 2^22
+  constexpr double bias = 0.5 + offset + 1.0 / 1048576; // exact: 2^22 to 2^-20 fit a double's 53 bits
+  return int32_t(double(c) * scale + bias) - int32_t(offset);
 }
 
 /** Length of the low band after `level` levels of a signal of n samples: ceil(n / 2^level). */
@@ -183,8 +197,19 @@ InverseRows(S * rows, S * scratch, const GridSize & grid, int32_t levels, const 
     if (w == HighBandWeight[0])
       continue;
     S * row = rows + int64_t(z) * grid.x;
-    for (int64_t c = 0; c < grid.x; ++c)
-      row[c] = S(Unweigh(row[c], w, inverse[std::size_t(z)]));
+    if constexpr (std::is_same_v<S, int32_t>)
+    {
+      // (The width in a local: an int32 store might change grid.x, which keeps the loop from vectorizing.)
+      const double  scale = 4096.0 / double(w);
+      const int64_t width = grid.x;
+      for (int64_t c = 0; c < width; ++c)
+        row[c] = UnweighSmall(row[c], scale);
+    }
+    else
+    {
+      for (int64_t c = 0; c < grid.x; ++c)
+        row[c] = S(Unweigh(row[c], w, inverse[std::size_t(z)]));
+    }
   }
   for (int32_t l = levels - 1; l >= 0; --l)
     Synthesize(rows, scratch, LowLength(grid.z, l), grid.x);

@@ -376,9 +376,10 @@ MoveFile(const std::string & from, const std::string & to, bool replace)
 }
 } // namespace
 
-PendingOutput::PendingOutput(const std::string & output, bool force, bool itkFormat)
+PendingOutput::PendingOutput(const std::string & output, bool force, bool itkFormat, bool sync)
   : m_Output(output)
   , m_Force(force)
+  , m_Sync(sync)
 {
   const fs::path    target(output);
   const std::string prefix = ".dcv-" + std::to_string(::getpid()) + "-" + target.filename().string();
@@ -434,20 +435,6 @@ PendingOutput::Files() const
 }
 
 void
-PendingOutput::StartFlush() const
-{
-  for (const auto & file : Files())
-  {
-    const int fd = ::open(file.c_str(), O_RDONLY);
-    if (fd >= 0)
-    {
-      ::sync_file_range(fd, 0, 0, SYNC_FILE_RANGE_WRITE); // a request only: Commit() still waits for it
-      ::close(fd);
-    }
-  }
-}
-
-void
 PendingOutput::Commit()
 {
   const std::vector<fs::path> files = Files(); // what to move, the header last
@@ -458,7 +445,8 @@ PendingOutput::Commit()
   }
   for (const auto & file : files)
   {
-    SyncFile(file.string());
+    if (m_Sync)
+      SyncFile(file.string());
   }
   const fs::path           parent = fs::path(m_Output).parent_path();
   std::vector<std::string> moved;
@@ -543,7 +531,7 @@ FileEndsWith(const std::string & path, const void * bytes, std::size_t n)
 void
 WriteOutputBytes(const std::string & output, const std::vector<uint8_t> & bytes, bool force)
 {
-  PendingOutput pending(output, force, false);
+  PendingOutput pending(output, force, false, true);
   // O_EXCL: a temporary of the same name (a run with a recycled PID, killed) is not written into.
   const int fd = ::open(pending.Path().c_str(), O_WRONLY | O_CREAT | O_EXCL | O_CLOEXEC, 0666);
   if (fd < 0)

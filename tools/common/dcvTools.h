@@ -177,8 +177,12 @@ class PendingOutput
 {
 public:
   /** `itkFormat`: ITK picks the writer from Path()'s extension (else the bytes are written by hand);
-   * `force`: Commit() may replace an existing file. */
-  PendingOutput(const std::string & output, bool force, bool itkFormat);
+   * `force`: Commit() may replace an existing file; `sync`: Commit() first flushes the files to the disk,
+   * so that a crash after the rename never leaves an empty file under the output's name. For what cannot
+   * be made again (a .dcv file, after which the original may be deleted); a volume or a mesh decoded or
+   * converted from an input that stays is not flushed, as cp, gzip or ITK's writers do not (norm-256 at
+   * 0.03125 bpv: the flush was 12% of `dcv decompress`). */
+  PendingOutput(const std::string & output, bool force, bool itkFormat, bool sync);
   ~PendingOutput();
   PendingOutput(const PendingOutput &) = delete;
   PendingOutput &
@@ -190,16 +194,11 @@ public:
   {
     return m_Path;
   }
-  /** Flushes what was written to the disk and moves it to the output's name: without `force` only if
+  /** Flushes what was written to the disk (with `sync`) and moves it to the output's name: without `force` only if
    * no file of that name appeared meanwhile (renameat2 RENAME_NOREPLACE, else link and unlink, both
    * atomic); Failure naming the output otherwise, and the temporary is removed. */
   void
   Commit();
-
-  /** Asks the disk to start writing what was written, without waiting: work done before Commit() then
-   * overlaps the writing, and Commit() waits less. */
-  void
-  StartFlush() const;
 
   /** After a failed write, the cause when the disk or a limit tells it ("the disk is full ...", a
    * `ulimit -f` size reached), else empty. */
@@ -211,6 +210,7 @@ private:
   std::string                      m_Path;      // the temporary file
   std::string                      m_Directory; // the temporary directory of a format of several files, else empty
   bool                             m_Force;
+  bool                             m_Sync;
   bool                             m_Committed{ false };
   std::unique_ptr<RemovedOnSignal> m_Registration;
 
@@ -230,12 +230,13 @@ FileEndsWith(const std::string & path, const void * bytes, std::size_t n);
 
 /** Writes an image (gzip compressed where the format allows, unless `compression` is false) through a
  * PendingOutput, so that a failure never leaves a partial or empty file under the output's name; `force`:
- * an existing file may be replaced. */
+ * an existing file may be replaced. Every image written is made from an input that stays (decoded,
+ * converted, generated): not flushed to the disk (PendingOutput's `sync`). */
 template <typename TImage>
 void
 WriteVolume(const TImage * image, const std::string & output, bool force, bool compression = true)
 {
-  PendingOutput pending(output, force, true);
+  PendingOutput pending(output, force, true, false);
   auto          writer = itk::ImageFileWriter<TImage>::New();
   writer->SetInput(image);
   writer->SetFileName(pending.Path());
@@ -249,7 +250,6 @@ WriteVolume(const TImage * image, const std::string & output, bool force, bool c
     const std::string limit = pending.LimitReached();
     throw Failure("cannot write " + Quoted(output) + ": " + (limit.empty() ? e.GetDescription() : limit));
   }
-  pending.StartFlush(); // the disk writes while the file is checked
   // ITK's MetaImage, NIfTI and Analyze writers report a failed write (a full disk) on stderr only, and
   // their readers take the short file without an error: what was written is read back and compared.
   // Uncompressed, a file of one piece ends with the voxels as they are in memory (NRRD, MetaImage): then
