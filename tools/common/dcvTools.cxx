@@ -446,7 +446,9 @@ PendingOutput::Commit()
   for (const auto & file : files)
   {
     if (m_Sync)
+    {
       SyncFile(file.string());
+    }
   }
   const fs::path           parent = fs::path(m_Output).parent_path();
   std::vector<std::string> moved;

@@ -194,9 +194,9 @@ public:
   {
     return m_Path;
   }
-  /** Flushes what was written to the disk (with `sync`) and moves it to the output's name: without `force` only if
-   * no file of that name appeared meanwhile (renameat2 RENAME_NOREPLACE, else link and unlink, both
-   * atomic); Failure naming the output otherwise, and the temporary is removed. */
+  /** Flushes what was written to the disk (with `sync`) and moves it to the output's name: without
+   * `force` only if no file of that name appeared meanwhile (renameat2 RENAME_NOREPLACE, else link and
+   * unlink, both atomic); Failure naming the output otherwise, and the temporary is removed. */
   void
   Commit();
 
