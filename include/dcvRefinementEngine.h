@@ -34,7 +34,7 @@ namespace dcv
  * - Dec: plus refinement/decimation with the approximate removal cost (sections 4, 5);
  * - DecCom: plus the combined image approach (section 3): positions chosen on the bilateral-filtered
  *   I* until PSNR(L) >= alpha PSNR(I*), each value the better of I(p) and I*(p);
- * - Best: everything that measurably helps (see ParametersForMode). */
+ * - Best: decimation and least-squares values, what measurably helps (not I*: see ParametersForMode). */
 enum class Mode
 {
   Silva,
@@ -57,9 +57,6 @@ struct RefinementParameters
   const float * smoothed{ nullptr };
   /** Selection switches from I* to I once PSNR(L) >= alpha * PSNR(I*) (paper, section 3). */
   double alpha{ 0.9 };
-  /** I* is left unused when PSNR(I*) is at least this (dB): a smooth image gains nothing from smoothing
-   * (paper, section 6, BluntFin). */
-  double smoothedPSNRLimit{ 1e300 };
   /** Peak of the PSNR (255 for 8-bit data, else the range of I). */
   double peak{ 255.0 };
   /** Also consider, for each new vertex, the value that minimizes the error over its new cells. */
@@ -84,7 +81,7 @@ struct RefinementParameters
 DelaunayCompression_EXPORT RefinementParameters
 ParametersForMode(Mode mode);
 
-/** Whether a mode needs the smoothed image I* (the combined image approach). */
+/** Whether a mode needs the smoothed image I* (the combined image approach): dec+com only. */
 DelaunayCompression_EXPORT bool
 UsesSmoothedImage(Mode mode);
 

@@ -78,32 +78,13 @@ public:
       // faster on norm-256 (12.5 s instead of 28-31 s) for the same I* (PSNR 47.54 vs 47.45 dB).
       bilateral->SetDomainMu(1.5);
       const auto start = std::chrono::steady_clock::now();
-      // The engine drops I* when PSNR(I*) reaches the mode's limit (too smooth to gain from it); a few
-      // slices of I* tell beforehand, and the filter of the whole volume is then spared: I = I* gives the
-      // engine the same drop, so the file is the same.
-      const double limit = dcv::ParametersForMode(options.mode).smoothedPSNRLimit;
-      m_EstimatedSmoothedPSNR = limit < 1e300 ? EstimateSmoothedPSNR(bilateral.GetPointer(), image, region) : 0.0;
-      if (m_EstimatedSmoothedPSNR >= limit + SmoothedPSNRMargin)
-      {
-        m_Input.smoothed = m_Input.voxels;
-      }
-      else
-      {
-        m_EstimatedSmoothedPSNR = 0.0;
-        bilateral->GetOutput()->SetRequestedRegion(region);
-        bilateral->Update();
-        m_Smoothed = bilateral->GetOutput();
-        m_Input.smoothed = m_Smoothed->GetBufferPointer();
-      }
+      bilateral->GetOutput()->SetRequestedRegion(region);
+      bilateral->Update();
+      m_Smoothed = bilateral->GetOutput();
+      m_Input.smoothed = m_Smoothed->GetBufferPointer();
       m_SmoothingSeconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
     }
   }
-
-  /** How far above the limit the sampled PSNR(I*) must be to skip I*: the sample's error, measured
-   * within 0.3 dB on ../shared/data. */
-  static constexpr double SmoothedPSNRMargin = 1.0;
-  /** Slices of I* sampled for the estimate. */
-  static constexpr unsigned int SampledSlices = 8;
 
   DCVEncoderInput(const DCVEncoderInput &) = delete;
   DCVEncoderInput &
@@ -129,48 +110,12 @@ public:
   {
     return m_SmoothingSeconds;
   }
-  /** PSNR(I*) from sampled slices when the filter of the whole volume was spared, else 0. */
-  double
-  GetEstimatedSmoothedPSNR() const
-  {
-    return m_EstimatedSmoothedPSNR;
-  }
 
 private:
-  /** PSNR(I*) against I over SampledSlices evenly spaced slices, each filtered alone (the filter computes
-   * the requested region only). */
-  template <typename TFilter>
-  double
-  EstimateSmoothedPSNR(TFilter * bilateral, const TImage * image, const typename TImage::RegionType & region) const
-  {
-    const auto  size = region.GetSize();
-    const auto  slices = std::min<SizeValueType>(SampledSlices, size[2]);
-    double      error = 0.0;
-    std::size_t count = 0;
-    for (SizeValueType i = 0; i < slices; ++i)
-    {
-      auto slice = region;
-      slice.SetIndex(2, region.GetIndex(2) + IndexValueType((2 * i + 1) * size[2] / (2 * slices)));
-      slice.SetSize(2, 1);
-      bilateral->GetOutput()->SetRequestedRegion(slice);
-      bilateral->Update();
-      ImageRegionConstIterator<TImage>                            in(image, slice);
-      ImageRegionConstIterator<typename TFilter::OutputImageType> out(bilateral->GetOutput(), slice);
-      for (; !in.IsAtEnd(); ++in, ++out)
-      {
-        const double e = double(in.Get()) - double(out.Get());
-        error += e * e;
-        ++count;
-      }
-    }
-    return dcv::PSNR(error, count, dcv::PSNRPeak(m_Input));
-  }
-
   std::vector<float>       m_Voxels;
   Image<float, 3>::Pointer m_Smoothed;
   dcv::EncoderInput        m_Input;
   double                   m_SmoothingSeconds{ 0.0 };
-  double                   m_EstimatedSmoothedPSNR{ 0.0 };
 };
 
 namespace DCVEncoderDetail
@@ -196,10 +141,6 @@ Run(const TImage * image, const dcv::EncoderOptions & options, TCall call, Smart
   }
   dcv::EncoderResult r = call(input.Get(), o);
   r.timings.smoothing = input.GetSmoothingSeconds();
-  if (input.GetEstimatedSmoothedPSNR() > 0.0)
-  {
-    r.smoothedPSNR = input.GetEstimatedSmoothedPSNR(); // I* was not computed: the sampled estimate
-  }
   r.timings.total = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
   return r;
 }

@@ -182,7 +182,7 @@ ParseMode(const std::string & name)
 bool
 UsesSmoothedImage(Mode mode)
 {
-  return mode == Mode::DecCom || mode == Mode::Best;
+  return mode == Mode::DecCom;
 }
 
 RefinementParameters
@@ -190,9 +190,12 @@ ParametersForMode(Mode mode)
 {
   RefinementParameters p;
   p.decimation = mode != Mode::Silva;
-  // Best uses I* only where it pays: measured on the dev volumes at low rates, I* helped the MR
-  // volumes (PSNR(I*) 36 to 41 dB) and cost 0.25 dB on the smooth simulations (46 dB).
-  p.smoothedPSNRLimit = mode == Mode::Best ? 44.0 : 1e300;
+  // Best does not use I*: with least-squares values and the residual layer it paid on none of the 40 dev
+  // runs (../shared/data, 0.03125 to 0.25 bpv: 35 files the same, 5 better by 0.08 to 0.98 dB, the CT
+  // volumes ct-avm-4mm and headsq-ct from 0.0625 bpv on), and points alone it gained at most 0.08 dB
+  // (flair-mr, head-mr at low rates) where it lost up to 1.03 dB (docs/profile.md, sixth session of
+  // 12-05): each vertex's value, the better of I(p) and I*(p) over its new cells, is a greedy choice the
+  // least squares then undo. It also spares the bilateral filter (the 5 mm CT series: 0.76 s).
   // The greedy local optimum of each new vertex's value was measured to hurt (head-mr, 3000 points:
   // 27.20 -> 25.15 dB with decimation), so no mode uses it; least squares at the end pays instead.
   p.leastSquares = mode == Mode::Best;
@@ -1085,11 +1088,6 @@ RefinementEngine::RefinementEngine(const float * image, const GridSize & grid, c
   if (parameters.smoothed)
   {
     d.smoothedPSNR = d.PSNROf(SquaredError(image, parameters.smoothed, grid.NumberOfVoxels()));
-    if (d.smoothedPSNR >= parameters.smoothedPSNRLimit)
-    {
-      d.parameters.smoothed = nullptr; // too smooth to gain from I*
-      d.selection = image;
-    }
   }
   d.isVertex.assign((grid.NumberOfVoxels() + 63) / 64, 0);
   for (int k = 0; k < 8; ++k)
