@@ -368,17 +368,19 @@ TEST(Encoder, AbandonsThePointsWhereTheResidualLayerWinsByFar)
 TEST(Encoder, SameFileWhateverTheNumberOfThreads)
 {
   // Large enough that the rescans and the least-squares assembly split over threads (thousands of
-  // cells), with noise so that mode best uses I*, and a budget that leaves room for a residual layer.
+  // cells), with noise for I* to smooth, and a budget that leaves room for a residual layer.
   auto         image = Phantom({ 56, 48, 40 });
   std::mt19937 random(7);
   for (itk::ImageRegionIteratorWithIndex<ImageType> it(image, image->GetBufferedRegion()); !it.IsAtEnd(); ++it)
     it.Set(uint8_t(std::clamp(int(it.Get()) + int(random() % 41) - 20, 0, 255)));
-  // The points alone, and with the residual layer (its inter-slice wavelet runs on threads too).
+  // The points alone in mode dec+com (I*: the bilateral filter runs on threads), and with the residual
+  // layer in mode best (its inter-slice wavelet runs on threads too).
   for (bool layer : { false, true })
   {
     dcv::EncoderOptions options;
     options.bitsPerVoxel = 0.15;
     options.residualLayer = layer;
+    options.mode = layer ? dcv::Mode::Best : dcv::Mode::DecCom;
     options.threads = 1;
     const auto one = itk::DCVEncode(image.GetPointer(), options);
     if (layer)
