@@ -42,12 +42,12 @@ namespace itk
  * Parameters:
  * - NumberOfPoints (default 10000, at least 8): the number of significant points. Fewer are used
  *   when the approximation becomes exact earlier.
- * - Mode (default dcv::Mode::Best): silva, dec, dec+com (the paper's columns) or best (ours: all of
- *   the above plus least-squares values); see dcv::Mode.
+ * - Mode (default dcv::Mode::Best): silva, dec, dec+com (the paper's columns) or best (ours: decimation
+ *   and least-squares values, without I*, which with them measured no gain); see dcv::Mode.
  * - DomainSigma (default 1.0, in voxels) and RangeSigma (default 0: 8% of the PSNR peak, i.e. 20.4
- *   for 8-bit data; else in intensity units) of the bilateral filter that makes I* (modes dec+com
- *   and best).
- * - Alpha (default 0.9, > 0): positions are chosen on I* until PSNR(L) >= Alpha * PSNR(I*), then on I.
+ *   for 8-bit data; else in intensity units) of the bilateral filter that makes I* (mode dec+com).
+ * - Alpha (default 0.9, > 0): positions are chosen on I* until PSNR(L) >= Alpha * PSNR(I*), then on I
+ *   (mode dec+com).
  * - QuantizationStep (default 0: none): vertex values are then min(I) + k * QuantizationStep, and the
  *   refinement works with these values (what a .dcv file stores). GetQuantizationOrigin() gives min(I).
  * - BitsPerVoxel (default 0: off): when positive, the point count is chosen instead of NumberOfPoints

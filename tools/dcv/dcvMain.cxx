@@ -95,14 +95,17 @@ AddMethodOptions(CLI::App & command, std::string & input, MethodOptions & o)
     .add_option("--mode,-m",
                 o.mode,
                 "silva (refinement), dec (+ decimation), dec+com (+ combined image approach: the paper's method), "
-                "best (+ least-squares values)")
-    ->capture_default_str();
-  command.add_option("--domain-sigma", o.encoder.domainSigma, "Bilateral filter of I*: spatial sigma, voxels")
+                "best (dec + least-squares values, without I*)")
     ->capture_default_str();
   command
-    .add_option("--range-sigma", o.encoder.rangeSigma, "Bilateral filter of I*: intensity sigma (0: 8% of the peak)")
+    .add_option("--domain-sigma", o.encoder.domainSigma, "Bilateral filter of I* (mode dec+com): spatial sigma, voxels")
     ->capture_default_str();
-  command.add_option("--alpha", o.encoder.alpha, "Choose positions on I* until PSNR >= alpha * PSNR(I*)")
+  command
+    .add_option("--range-sigma",
+                o.encoder.rangeSigma,
+                "Bilateral filter of I* (mode dec+com): intensity sigma (0: 8% of the peak)")
+    ->capture_default_str();
+  command.add_option("--alpha", o.encoder.alpha, "Mode dec+com: choose positions on I* until PSNR >= alpha * PSNR(I*)")
     ->capture_default_str();
   command
     .add_option(
