@@ -159,7 +159,7 @@ TEST(Outputs, AFileThatAppearedWhileWritingIsKept)
   const dcv::test::TemporaryDirectory d;
   const std::string                   output = d / "out.dcv";
   {
-    dcv::tools::PendingOutput pending(output, false, false, true);
+    dcv::tools::PendingOutput pending(output, false, false);
     std::ofstream(pending.Path()) << "new";
     std::ofstream(output) << "someone else's"; // another run, between the check and the rename
     try
@@ -176,7 +176,7 @@ TEST(Outputs, AFileThatAppearedWhileWritingIsKept)
   EXPECT_EQ(dcv::test::FileBytes(output), "someone else's");
   EXPECT_EQ(Names(d / ""), (std::vector<std::string>{ "out.dcv" })); // the temporary is gone
   {
-    dcv::tools::PendingOutput pending(output, true, false, true); // --force
+    dcv::tools::PendingOutput pending(output, true, false); // --force
     std::ofstream(pending.Path()) << "new";
     pending.Commit();
   }
@@ -185,7 +185,7 @@ TEST(Outputs, AFileThatAppearedWhileWritingIsKept)
   std::ofstream(d / "v.zraw") << "another volume's data";
   EXPECT_THROW(
     {
-      dcv::tools::PendingOutput pending(d / "v.mhd", false, true, false);
+      dcv::tools::PendingOutput pending(d / "v.mhd", false, true);
       std::ofstream(fs::path(pending.Path()).parent_path() / "v.zraw") << "data";
       std::ofstream(pending.Path()) << "header";
       pending.Commit();
@@ -220,9 +220,9 @@ TEST(Outputs, ASignalRemovesTheTemporaryFiles)
   // The child registers a file and a directory of files, as a write in progress does, then is killed.
   EXPECT_EXIT(
     {
-      dcv::tools::PendingOutput file(directory + "a.nrrd", false, true, false);
+      dcv::tools::PendingOutput file(directory + "a.nrrd", false, true);
       std::ofstream(file.Path()) << "partial";
-      dcv::tools::PendingOutput several(directory + "b.mhd", false, true, false);
+      dcv::tools::PendingOutput several(directory + "b.mhd", false, true);
       std::ofstream(several.Path()) << "header";
       std::ofstream(fs::path(several.Path()).parent_path() / "b.zraw") << "data";
       std::raise(SIGTERM);

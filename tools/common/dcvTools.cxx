@@ -344,19 +344,6 @@ ErrorText(int error)
   return std::error_code(error, std::generic_category()).message();
 }
 
-/** Flushes a written file to the disk, so that a crash after the rename cannot leave an empty file
- * under the output's name. */
-void
-SyncFile(const std::string & path)
-{
-  const int fd = ::open(path.c_str(), O_RDONLY);
-  if (fd >= 0)
-  {
-    ::fsync(fd);
-    ::close(fd);
-  }
-}
-
 /** rename(), but unless `replace` failing with EEXIST when `to` exists, decided atomically by the file
  * system: renameat2 RENAME_NOREPLACE, or where a file system lacks it (EINVAL) a hard link, which never
  * replaces, then the unlink of the old name. Returns 0 or an errno value. */
@@ -376,10 +363,9 @@ MoveFile(const std::string & from, const std::string & to, bool replace)
 }
 } // namespace
 
-PendingOutput::PendingOutput(const std::string & output, bool force, bool itkFormat, bool sync)
+PendingOutput::PendingOutput(const std::string & output, bool force, bool itkFormat)
   : m_Output(output)
   , m_Force(force)
-  , m_Sync(sync)
 {
   const fs::path    target(output);
   const std::string prefix = ".dcv-" + std::to_string(::getpid()) + "-" + target.filename().string();
@@ -442,13 +428,6 @@ PendingOutput::Commit()
   if (!fs::is_regular_file(m_Path, error))
   {
     throw Failure("cannot write " + Quoted(m_Output) + ": the writer made no file");
-  }
-  for (const auto & file : files)
-  {
-    if (m_Sync)
-    {
-      SyncFile(file.string());
-    }
   }
   const fs::path           parent = fs::path(m_Output).parent_path();
   std::vector<std::string> moved;
@@ -533,7 +512,7 @@ FileEndsWith(const std::string & path, const void * bytes, std::size_t n)
 void
 WriteOutputBytes(const std::string & output, const std::vector<uint8_t> & bytes, bool force)
 {
-  PendingOutput pending(output, force, false, true);
+  PendingOutput pending(output, force, false);
   // O_EXCL: a temporary of the same name (a run with a recycled PID, killed) is not written into.
   const int fd = ::open(pending.Path().c_str(), O_WRONLY | O_CREAT | O_EXCL | O_CLOEXEC, 0666);
   if (fd < 0)

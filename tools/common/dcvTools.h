@@ -177,12 +177,11 @@ class PendingOutput
 {
 public:
   /** `itkFormat`: ITK picks the writer from Path()'s extension (else the bytes are written by hand);
-   * `force`: Commit() may replace an existing file; `sync`: Commit() first flushes the files to the disk,
-   * so that a crash after the rename never leaves an empty file under the output's name. For what cannot
-   * be made again (a .dcv file, after which the original may be deleted); a volume or a mesh decoded or
-   * converted from an input that stays is not flushed, as cp, gzip or ITK's writers do not (norm-256 at
-   * 0.03125 bpv: the flush was 12% of `dcv decompress`). */
-  PendingOutput(const std::string & output, bool force, bool itkFormat, bool sync);
+   * `force`: Commit() may replace an existing file. Nothing is flushed to the disk here: a volume or a
+   * mesh decoded or converted from an input that stays is not, as cp, gzip or ITK's writers do not
+   * (norm-256 at 0.03125 bpv: the flush was 12% of `dcv decompress`); WriteOutputBytes flushes a .dcv
+   * file, which may be the only copy once the original is deleted. */
+  PendingOutput(const std::string & output, bool force, bool itkFormat);
   ~PendingOutput();
   PendingOutput(const PendingOutput &) = delete;
   PendingOutput &
@@ -194,8 +193,8 @@ public:
   {
     return m_Path;
   }
-  /** Flushes what was written to the disk (with `sync`) and moves it to the output's name: without
-   * `force` only if no file of that name appeared meanwhile (renameat2 RENAME_NOREPLACE, else link and
+  /** Moves what was written to the output's name: without `force` only if no file of that name appeared
+   * meanwhile (renameat2 RENAME_NOREPLACE, else link and
    * unlink, both atomic); Failure naming the output otherwise, and the temporary is removed. */
   void
   Commit();
@@ -210,7 +209,6 @@ private:
   std::string                      m_Path;      // the temporary file
   std::string                      m_Directory; // the temporary directory of a format of several files, else empty
   bool                             m_Force;
-  bool                             m_Sync;
   bool                             m_Committed{ false };
   std::unique_ptr<RemovedOnSignal> m_Registration;
 
@@ -219,7 +217,8 @@ private:
   Files() const;
 };
 
-/** Writes bytes (a .dcv file) to `output` through a PendingOutput: a failure (a full disk, a missing
+/** Writes bytes (a .dcv file) to `output` through a PendingOutput, flushed to the disk before the rename
+ * (a crash after it never leaves an empty file under the name): a failure (a full disk, a missing
  * permission) never leaves a partial or empty file, and is a Failure naming the file and the cause. */
 void
 WriteOutputBytes(const std::string & output, const std::vector<uint8_t> & bytes, bool force);
@@ -231,12 +230,12 @@ FileEndsWith(const std::string & path, const void * bytes, std::size_t n);
 /** Writes an image (gzip compressed where the format allows, unless `compression` is false) through a
  * PendingOutput, so that a failure never leaves a partial or empty file under the output's name; `force`:
  * an existing file may be replaced. Every image written is made from an input that stays (decoded,
- * converted, generated): not flushed to the disk (PendingOutput's `sync`). */
+ * converted, generated): not flushed to the disk (PendingOutput). */
 template <typename TImage>
 void
 WriteVolume(const TImage * image, const std::string & output, bool force, bool compression = true)
 {
-  PendingOutput pending(output, force, true, false);
+  PendingOutput pending(output, force, true);
   auto          writer = itk::ImageFileWriter<TImage>::New();
   writer->SetInput(image);
   writer->SetFileName(pending.Path());

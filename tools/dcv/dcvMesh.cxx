@@ -81,7 +81,7 @@ Mesh(const MeshOptions & m)
   const auto            start = std::chrono::steady_clock::now();
   const Approximation   a = DecodeMesh(file, m.limits);
   const TetrahedralMesh mesh = SplineMesh(file, a);
-  PendingOutput         pending(m.output, m.force, false, false); // made again from the .dcv file
+  PendingOutput         pending(m.output, m.force, false);
   try
   {
     std::ofstream out(pending.Path(), std::ios::binary | std::ios::trunc);
