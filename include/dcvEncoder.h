@@ -91,12 +91,15 @@ struct EncoderInput;
 DelaunayCompression_EXPORT void
 CheckOptions(const EncoderOptions & options, const EncoderInput & input);
 
-/** The encoder's memory model, from above (docs/profile.md, "Memory model"): per voxel the input as
- * floats, I*, the engine's per-voxel state and, with a bit budget and the residual layer, the layer's
- * search buffers; per point the tetrahedralization, the least squares and the heaps. */
-constexpr double EncodingBytesPerVoxel = 24.0;
-constexpr double EncodingBytesPerVoxelWithResidualLayer = 48.0;
-constexpr double EncodingBytesPerPoint = 4096.0;
+/** The encoder's memory model, from above: per voxel the input as floats, I* (mode dec+com), the engine's
+ * per-voxel state and, with a bit budget and the residual layer, the layer's trial buffers; per point the
+ * tetrahedralization, the least squares and the heaps. The peaks of the 40 dev runs, of float32, float64
+ * and int16 copies of norm-256 and of `--points` runs were 0.38 to 0.82 of it from 2 million voxels on
+ * (below, the libraries' 20 MiB dominate; docs/profile.md, seventh session of 12-05), where the model
+ * before (24 and 48 bytes a voxel, 4 KiB a point) was 3 to 5 times the peak and refused jobs that fit. */
+constexpr double EncodingBytesPerVoxel = 16.0;
+constexpr double EncodingBytesPerVoxelWithResidualLayer = 24.0;
+constexpr double EncodingBytesPerPoint = 2048.0;
 
 /** What encoding a grid with these options may need at most (the memory model above). The points: the
  * target NumberOfPoints, or with BitsPerVoxel as many as the budget holds at 8 bits a point; a PSNR
