@@ -23,6 +23,7 @@
 
 #include "itkGDCMImageIO.h"
 #include "itkGDCMSeriesFileNames.h"
+#include "itkImageFileWriter.h"
 #include "itkImageSeriesReader.h"
 
 #include <dcmtk/dcmdata/dctk.h>
@@ -364,6 +365,45 @@ TEST(DicomOutput, AVolumeNotFromDicomGetsAPlaceholderContext)
   const auto b = ReadSeries(directory / "series");
   const auto n = a->GetBufferedRegion().GetNumberOfPixels();
   EXPECT_GT(dcv::PSNR(dcv::SquaredError(a->GetBufferPointer(), b->GetBufferPointer(), n), n, 255.0), 15.0);
+}
+
+
+// GDCM reads no image plane in Secondary Capture images; dcv writes one into the series it makes from
+// volumes that were not CT, and reads it back: the same grid and voxels as the decoded volume.
+TEST(DicomOutput, ASecondaryCaptureSeriesReadsBackOnItsGrid)
+{
+  const dcv::test::TemporaryDirectory directory;
+  ASSERT_EQ(RunDcv("phantom " + (directory / "p.nrrd") + " --size 20").status, 0);
+  using ImageType = itk::Image<uint8_t, 3>;
+  const auto               image = itk::ReadImage<ImageType>(directory / "p.nrrd");
+  const double             spacing[3] = { 0.7, 0.8, 2.5 };
+  const double             origin[3] = { 10.0, -20.0, 30.0 };
+  ImageType::DirectionType direction; // the in-plane axes flipped, as in a supine CT series
+  direction.Fill(0.0);
+  direction[0][0] = -1.0;
+  direction[1][1] = -1.0;
+  direction[2][2] = 1.0;
+  image->SetSpacing(spacing);
+  image->SetOrigin(origin);
+  image->SetDirection(direction);
+  itk::WriteImage(image, directory / "g.nrrd");
+  ASSERT_EQ(RunDcv("compress " + (directory / "g.nrrd") + " " + (directory / "g.dcv") + " -n 300 -q").status, 0);
+  ASSERT_EQ(RunDcv("decompress " + (directory / "g.dcv") + " " + (directory / "decoded.nrrd") + " -q").status, 0);
+  ASSERT_EQ(RunDcv("decompress " + (directory / "g.dcv") + " " + (directory / "series") + " --dicom -q").status, 0);
+  const Result back = RunDcv("convert " + (directory / "series") + " " + (directory / "back.nrrd"));
+  ASSERT_EQ(back.status, 0) << back.output;
+  const auto a = itk::ReadImage<itk::Image<int16_t, 3>>(directory / "decoded.nrrd");
+  const auto b = itk::ReadImage<itk::Image<int16_t, 3>>(directory / "back.nrrd");
+  ASSERT_EQ(a->GetLargestPossibleRegion(), b->GetLargestPossibleRegion());
+  for (unsigned i = 0; i < 3; ++i)
+  {
+    EXPECT_NEAR(b->GetSpacing()[i], spacing[i], 1e-6);
+    EXPECT_NEAR(b->GetOrigin()[i], origin[i], 1e-6);
+    for (unsigned j = 0; j < 3; ++j)
+      EXPECT_NEAR(b->GetDirection()[i][j], direction[i][j], 1e-6);
+  }
+  const auto n = a->GetBufferedRegion().GetNumberOfPixels();
+  EXPECT_TRUE(std::equal(a->GetBufferPointer(), a->GetBufferPointer() + n, b->GetBufferPointer()));
 }
 
 

@@ -50,6 +50,31 @@ Tag(const itk::MetaDataDictionary & d, const std::string & key)
   return Trimmed(value);
 }
 
+/** The numbers of a multi-valued decimal string ("a\\b\\c"); none where one does not parse. */
+std::vector<double>
+Numbers(const std::string & value)
+{
+  std::vector<double> numbers;
+  std::stringstream   in(value);
+  for (std::string item; std::getline(in, item, '\\');)
+  {
+    try
+    {
+      std::size_t used = 0;
+      numbers.push_back(std::stod(item, &used));
+      if (!Trimmed(item.substr(used)).empty() || !std::isfinite(numbers.back()))
+        return {};
+    }
+    catch (const std::exception &)
+    {
+      return {};
+    }
+  }
+  return numbers;
+}
+
+constexpr const char * SecondaryCaptureImageStorage = "1.2.840.10008.5.1.4.1.1.7";
+
 /** The header of one file (GDCM reads up to the pixel data). */
 itk::ImageIOBase::Pointer
 ReadHeader(const std::string & file)
@@ -286,6 +311,23 @@ ReadDicomSlices(const DicomSeries & series)
     s.pixelSpacing = { { io->GetSpacing(0), io->GetSpacing(1) } };
     s.columns = unsigned(io->GetDimensions(0));
     s.rows = unsigned(io->GetDimensions(1));
+    const itk::MetaDataDictionary & d = io->GetMetaDataDictionary();
+    s.secondaryCapture = Tag(d, "0008|0016") == SecondaryCaptureImageStorage;
+    if (s.secondaryCapture)
+    {
+      // GDCM reads no image plane in a Secondary Capture image (its IOD has none): every slice would be
+      // at the origin, 1 mm apart in the plane. dcv writes the plane into the series it makes from
+      // volumes that were not CT; where it is there, it is read here (and the grid from it, ReadVolume).
+      const auto position = Numbers(Tag(d, "0020|0032"));
+      const auto orientation = Numbers(Tag(d, "0020|0037"));
+      const auto spacing = Numbers(Tag(d, "0028|0030")); // between rows, then between columns
+      if (position.size() == 3)
+        std::copy(position.begin(), position.end(), s.position.begin());
+      if (orientation.size() == 6)
+        std::copy(orientation.begin(), orientation.end(), s.orientation.begin());
+      if (spacing.size() == 2 && spacing[0] > 0.0 && spacing[1] > 0.0)
+        s.pixelSpacing = { { spacing[1], spacing[0] } };
+    }
     slices.push_back(s);
   }
   return slices;
@@ -376,17 +418,13 @@ CheckDicomSlices(const std::string & name, const std::vector<DicomSlice> & slice
     }
   }
   DicomResampling r;
-  if (!tilted && !uneven)
-  {
-    return r;
-  }
   // The grid's third axis points from the first slice to the last, as ITK's series reader orients it.
   const double sign = usual > 0.0 ? 1.0 : -1.0;
   for (auto & a : along)
   {
     a *= sign;
   }
-  r.needed = true;
+  r.needed = tilted || uneven;
   r.uneven = uneven;
   r.tilted = tilted;
   r.along = along;
@@ -423,7 +461,15 @@ CheckDicomSlices(const std::string & name, const std::vector<DicomSlice> & slice
     }
   }
   const double extent = along.back();
-  std::string  spacing;
+  r.spacing[0] = first.pixelSpacing[0];
+  r.spacing[1] = first.pixelSpacing[1];
+  if (!r.needed)
+  {
+    r.spacing[2] = extent / double(slices.size() - 1);
+    r.slices = slices.size();
+    return r;
+  }
+  std::string spacing;
   if (uneven)
   {
     // The smallest gap, so that no part of the series is sampled more coarsely than it was, shortened
@@ -455,8 +501,6 @@ CheckDicomSlices(const std::string & name, const std::vector<DicomSlice> & slice
     r.slices = slices.size();
     spacing = Millimetres(r.spacing[2]) + " apart";
   }
-  r.spacing[0] = first.pixelSpacing[0];
-  r.spacing[1] = first.pixelSpacing[1];
   if (tilted)
   {
     const double degrees = std::atan(Norm(r.shear)) * 180.0 / 3.14159265358979323846;

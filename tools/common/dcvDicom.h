@@ -81,14 +81,16 @@ struct DicomSlice
   std::array<double, 2> pixelSpacing{ { 1, 1 } }; // along a row, down a column
   unsigned              rows{ 0 };
   unsigned              columns{ 0 };
+  bool                  secondaryCapture{ false }; // its plane read by dcv, not by GDCM (ReadDicomSlices)
 };
 
 /** The geometry of every slice of the series, from each file's header. */
 std::vector<DicomSlice>
 ReadDicomSlices(const DicomSeries & series);
 
-/** How a tilted or unevenly spaced series is put on a grid (ReadResampledDicomSeries): slices `spacing` mm
- * apart along the normal of the orientation, from the first slice's plane to the last one's. */
+/** How a series is put on a grid: slices `spacing` mm apart along the normal of the orientation, from the
+ * first slice's plane to the last one's. `needed`: a tilted or unevenly spaced series, resampled onto it
+ * (ReadResampledDicomSeries); else the grid is the slices' own. */
 struct DicomResampling
 {
   bool                  needed{ false };
