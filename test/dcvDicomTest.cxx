@@ -404,6 +404,19 @@ TEST(DicomOutput, ASecondaryCaptureSeriesReadsBackOnItsGrid)
   }
   const auto n = a->GetBufferedRegion().GetNumberOfPixels();
   EXPECT_TRUE(std::equal(a->GetBufferPointer(), a->GetBufferPointer() + n, b->GetBufferPointer()));
+  // Secondary Capture images without a position (screen captures) have nothing to stack them by.
+  for (const auto & entry : fs::directory_iterator(directory / "series"))
+  {
+    DcmFileFormat f;
+    ASSERT_TRUE(f.loadFile(entry.path().c_str()).good());
+    f.getDataset()->findAndDeleteElement(DCM_ImagePositionPatient);
+    ASSERT_TRUE(f.saveFile(entry.path().c_str(), EXS_LittleEndianExplicit).good());
+  }
+  const Result unplaced = RunDcv("convert " + (directory / "series") + " " + (directory / "none.nrrd"));
+  EXPECT_EQ(unplaced.status, 1) << unplaced.output;
+  EXPECT_NE(unplaced.output.find("Secondary Capture image without Image Position (Patient)"), std::string::npos)
+    << unplaced.output;
+  EXPECT_FALSE(fs::exists(directory / "none.nrrd"));
 }
 
 

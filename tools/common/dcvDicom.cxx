@@ -321,7 +321,8 @@ ReadDicomSlices(const DicomSeries & series)
       const auto position = Numbers(Tag(d, "0020|0032"));
       const auto orientation = Numbers(Tag(d, "0020|0037"));
       const auto spacing = Numbers(Tag(d, "0028|0030")); // between rows, then between columns
-      if (position.size() == 3)
+      s.positioned = position.size() == 3;
+      if (s.positioned)
         std::copy(position.begin(), position.end(), s.position.begin());
       if (orientation.size() == 6)
         std::copy(orientation.begin(), orientation.end(), s.orientation.begin());
@@ -394,6 +395,13 @@ CheckDicomSlices(const std::string & name, const std::vector<DicomSlice> & slice
   const double usual = sorted[sorted.size() / 2];
   if (!(std::abs(usual) > 1e-6) || (resample && !(sorted.front() * usual > 1e-12 && sorted.back() * usual > 1e-12)))
   {
+    const auto unplaced =
+      std::find_if(slices.begin(), slices.end(), [](const DicomSlice & s) { return !s.positioned; });
+    if (unplaced != slices.end())
+    {
+      throw Failure(name + ": slice " + std::to_string(unplaced - slices.begin() + 1) +
+                    " is a Secondary Capture image without Image Position (Patient): no position to stack it by");
+    }
     throw Failure(name + ": slices at the same position (duplicates?)");
   }
   bool uneven = false;

@@ -82,6 +82,7 @@ struct DicomSlice
   unsigned              rows{ 0 };
   unsigned              columns{ 0 };
   bool                  secondaryCapture{ false }; // its plane read by dcv, not by GDCM (ReadDicomSlices)
+  bool                  positioned{ true };        // false: Secondary Capture without Image Position (Patient)
 };
 
 /** The geometry of every slice of the series, from each file's header. */
