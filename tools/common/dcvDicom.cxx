@@ -312,12 +312,11 @@ ReadDicomSlices(const DicomSeries & series)
     s.columns = unsigned(io->GetDimensions(0));
     s.rows = unsigned(io->GetDimensions(1));
     const itk::MetaDataDictionary & d = io->GetMetaDataDictionary();
-    s.secondaryCapture = Tag(d, "0008|0016") == SecondaryCaptureImageStorage;
-    if (s.secondaryCapture)
+    if (Tag(d, "0008|0016") == SecondaryCaptureImageStorage)
     {
       // GDCM reads no image plane in a Secondary Capture image (its IOD has none): every slice would be
       // at the origin, 1 mm apart in the plane. dcv writes the plane into the series it makes from
-      // volumes that were not CT; where it is there, it is read here (and the grid from it, ReadVolume).
+      // volumes that were not CT; where it is there, it is read here (ReadVolume's grid comes from it).
       const auto position = Numbers(Tag(d, "0020|0032"));
       const auto orientation = Numbers(Tag(d, "0020|0037"));
       const auto spacing = Numbers(Tag(d, "0028|0030")); // between rows, then between columns

@@ -81,8 +81,7 @@ struct DicomSlice
   std::array<double, 2> pixelSpacing{ { 1, 1 } }; // along a row, down a column
   unsigned              rows{ 0 };
   unsigned              columns{ 0 };
-  bool                  secondaryCapture{ false }; // its plane read by dcv, not by GDCM (ReadDicomSlices)
-  bool                  positioned{ true };        // false: Secondary Capture without Image Position (Patient)
+  bool                  positioned{ true }; // false: Secondary Capture without Image Position (Patient)
 };
 
 /** The geometry of every slice of the series, from each file's header. */

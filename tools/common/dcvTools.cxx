@@ -144,10 +144,7 @@ OpenVolume(const std::string & path, const std::string & series, bool resample)
     return v;
   }
   v.dicom = FindDicomSeries(path, series, v.skipped);
-  const auto slices = ReadDicomSlices(v.dicom);
-  v.resampling = CheckDicomSlices("the DICOM series " + Quoted(path), slices, resample);
-  v.gridFromHeaders =
-    std::any_of(slices.begin(), slices.end(), [](const DicomSlice & s) { return s.secondaryCapture; });
+  v.resampling = CheckDicomSlices("the DICOM series " + Quoted(path), ReadDicomSlices(v.dicom), resample);
   v.type = DicomPixelType(v.dicom);
   v.metadata = DicomMetadata(v.dicom);
   if (v.resampling.needed)

@@ -99,8 +99,7 @@ struct VolumeInput
   DicomSeries                                      dicom;        // files empty: not DICOM
   std::vector<std::pair<std::string, std::string>> metadata;     // what a derived file keeps (DICOM attributes)
   std::size_t                                      skipped{ 0 }; // files of a DICOM directory that are not DICOM
-  DicomResampling                                  resampling;   // needed: a tilted or uneven series, resampled
-  bool gridFromHeaders{ false }; // Secondary Capture: ReadVolume sets the grid from `resampling` (GDCM reads none)
+  DicomResampling                                  resampling; // the grid; needed: a tilted or uneven series, resampled
 };
 
 /** Opens a volume: checks a volume file's header (ReadVolumeHeader), or finds and checks a DICOM series
@@ -134,20 +133,19 @@ ReadVolume(const VolumeInput & v)
   {
     throw Failure("cannot read the DICOM series " + Quoted(v.path) + ": " + e.GetDescription());
   }
-  typename itk::Image<T, 3>::Pointer image = reader->GetOutput();
-  if (v.gridFromHeaders)
+  // The grid the checks found in the slices' headers (CheckDicomSlices), as for a resampled series: the
+  // series reader's own comes from GDCM, which reads no image plane in Secondary Capture images.
+  typename itk::Image<T, 3>::Pointer       image = reader->GetOutput();
+  const DicomResampling &                  g = v.resampling;
+  typename itk::Image<T, 3>::DirectionType direction;
+  for (unsigned i = 0; i < 3; ++i)
   {
-    const DicomResampling &                  g = v.resampling;
-    typename itk::Image<T, 3>::DirectionType direction;
-    for (unsigned i = 0; i < 3; ++i)
-    {
-      for (unsigned j = 0; j < 3; ++j)
-        direction[i][j] = g.direction[3 * i + j];
-    }
-    image->SetOrigin(g.origin.data());
-    image->SetSpacing(g.spacing.data());
-    image->SetDirection(direction);
+    for (unsigned j = 0; j < 3; ++j)
+      direction[i][j] = g.direction[3 * i + j];
   }
+  image->SetOrigin(g.origin.data());
+  image->SetSpacing(g.spacing.data());
+  image->SetDirection(direction);
   return image;
 }
 
