@@ -17,6 +17,7 @@
  *=========================================================================*/
 #include "dcvTetrahedralization.h"
 #include "dcvVertexRemoval.h"
+#include "dcvGridKernel.h"
 #include "dcvParallel.h"
 
 #include <CGAL/Delaunay_triangulation_3.h>
@@ -38,8 +39,8 @@ namespace dcv
 {
 namespace
 {
-// Integer coordinates below 2^16 are exact in doubles, and the kernel's predicates are exact.
-using Kernel = CGAL::Exact_predicates_inexact_constructions_kernel;
+// Integer coordinates are exact in doubles, and the kernel's predicates are exact (dcvGridKernel.h).
+using Kernel = GridKernel;
 using VertexBase = CGAL::Triangulation_vertex_base_with_info_3<Tetrahedralization::VertexId, Kernel>;
 constexpr uint32_t LargeVolume6 = (uint32_t(1) << 24) - 1;
 // CGAL default-initializes the info of the cells it creates: give the identifier a safe default.
@@ -100,9 +101,22 @@ CellOf(Tetrahedralization::CellId id, const CellHandle & c)
   return { id, { c->vertex(0)->info(), c->vertex(1)->info(), c->vertex(2)->info(), c->vertex(3)->info() } };
 }
 
+static_assert(int64_t(MaximumGridExtent - 1) * MaximumGridScale < GridKernel::CoordinateLimit,
+              "the integer predicates hold every grid");
+
+// The point in the scaled space, where the kernel's integer predicates need coordinates in
+// [0, GridKernel::CoordinateLimit): every grid of the format (MaximumGridExtent x MaximumGridScale).
 CgalPoint
 ToCgal(const GridPoint & p, const GridScale & s)
 {
+  for (int i = 0; i < 3; ++i)
+  {
+    if (p[i] < 0 || int64_t(p[i]) * s[i] >= GridKernel::CoordinateLimit)
+    {
+      throw std::invalid_argument("Tetrahedralization: point (" + std::to_string(p[0]) + ", " + std::to_string(p[1]) +
+                                  ", " + std::to_string(p[2]) + ") lies outside the grids it can hold");
+    }
+  }
   return CgalPoint(double(p[0]) * s[0], double(p[1]) * s[1], double(p[2]) * s[2]);
 }
 } // namespace
@@ -238,9 +252,9 @@ Tetrahedralization::InsertMany(const std::vector<GridPoint> & points)
   const VertexId first = VertexId(d.points.size());
   for (std::size_t i = 0; i < points.size(); ++i)
   {
-    input.emplace_back(ToCgal(points[i], d.scale), first + VertexId(i));
-    d.points.push_back(points[i]);
+    input.emplace_back(ToCgal(points[i], d.scale), first + VertexId(i)); // checks before anything changes
   }
+  d.points.insert(d.points.end(), points.begin(), points.end());
   d.vertices.resize(d.points.size());
   // The range insertion sorts spatially (fast) and keeps the info of each point.
   const std::size_t before = d.dt.number_of_vertices();

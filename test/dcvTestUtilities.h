@@ -26,6 +26,7 @@
 #include <gtest/gtest.h>
 
 #include <algorithm>
+#include <array>
 #include <cstdio>
 #include <cstdlib>
 #include <filesystem>
@@ -189,6 +190,25 @@ Corners(const GridSize & g)
   {
     out.push_back({ (k & 1) ? g.x - 1 : 0, (k & 2) ? g.y - 1 : 0, (k & 4) ? g.z - 1 : 0 });
   }
+  return out;
+}
+
+/** Every cell of a CGAL 3D triangulation whose vertices hold their ids as info, infinite cells too (the
+ * infinite vertex as 0xffffffff), as its vertices' ids in the cell's own order, sorted: two triangulations
+ * list the same when they have the same cells with their vertices in the same order. */
+template <typename TTriangulation>
+std::vector<std::array<uint32_t, 4>>
+ListedCells(const TTriangulation & dt)
+{
+  std::vector<std::array<uint32_t, 4>> out;
+  for (auto c = dt.all_cells_begin(); c != dt.all_cells_end(); ++c)
+  {
+    std::array<uint32_t, 4> ids;
+    for (int i = 0; i < 4; ++i)
+      ids[std::size_t(i)] = dt.is_infinite(c->vertex(i)) ? 0xffffffffu : uint32_t(c->vertex(i)->info());
+    out.push_back(ids);
+  }
+  std::sort(out.begin(), out.end());
   return out;
 }
 

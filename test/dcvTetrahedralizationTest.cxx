@@ -424,4 +424,28 @@ TEST(Tetrahedralization, DuplicatePointsAreRefused)
   EXPECT_THROW(Tetrahedralize(points), std::invalid_argument);
 }
 
+TEST(Tetrahedralization, PointsBeyondTheLargestGridAreRefusedBeforeAnyChange)
+{
+  // The largest grid, 65535 voxels an axis at a scale of 16, is held (the integer predicates of
+  // src/dcvGridKernel.h are exact below 2^20 scaled); a point at 2^20 or beyond, or below 0, is refused
+  // and leaves the mesh as it was.
+  const GridSize     grid{ MaximumGridExtent, MaximumGridExtent, MaximumGridExtent };
+  Tetrahedralization mesh;
+  mesh.SetScale({ MaximumGridScale, MaximumGridScale, MaximumGridScale });
+  mesh.InsertMany(test::Corners(grid));
+  std::vector<Tetrahedralization::CellId> killed;
+  std::vector<Tetrahedralization::Cell>   created;
+  mesh.Insert({ MaximumGridExtent - 2, 1, MaximumGridExtent / 2 }, Tetrahedralization::NoCell, killed, created);
+  EXPECT_TRUE(mesh.IsValid());
+  const std::size_t cells = mesh.NumberOfFiniteCells();
+  for (const GridPoint & p : { GridPoint{ MaximumGridExtent + 1, 0, 0 }, GridPoint{ 0, -1, 0 }, GridPoint{ 3, 4, 70000 } })
+  {
+    EXPECT_THROW(mesh.Insert(p, Tetrahedralization::NoCell, killed, created), std::invalid_argument);
+    EXPECT_THROW(mesh.InsertMany({ { 1, 1, 1 }, p }), std::invalid_argument);
+  }
+  EXPECT_EQ(mesh.NumberOfVertexIds(), 9u);
+  EXPECT_EQ(mesh.NumberOfFiniteCells(), cells);
+  EXPECT_TRUE(mesh.IsValid());
+}
+
 } // namespace

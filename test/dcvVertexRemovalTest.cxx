@@ -19,6 +19,7 @@
 // same cells with their vertices in the same order (what the least squares and the costs read), on
 // random points, on whole lattices (every cell cospherical with its neighbours) and on the hull.
 #include "dcvVertexRemoval.h"
+#include "dcvTestUtilities.h"
 
 #include <CGAL/Delaunay_triangulation_3.h>
 #include <CGAL/Delaunay_triangulation_cell_base_3.h>
@@ -59,22 +60,6 @@ using Delaunay =
                                  CGAL::Triangulation_data_structure_3<VertexBase, CellBase, CGAL::Sequential_tag>>;
 using Cells = std::vector<std::array<uint32_t, 4>>;
 
-/** Every cell (infinite ones too) as its vertices' ids in the cell's own order, sorted by those. */
-Cells
-Listed(const Delaunay & dt)
-{
-  Cells out;
-  for (auto c = dt.all_cells_begin(); c != dt.all_cells_end(); ++c)
-  {
-    std::array<uint32_t, 4> ids;
-    for (int i = 0; i < 4; ++i)
-      ids[std::size_t(i)] = dt.is_infinite(c->vertex(i)) ? 0xffffffffu : c->vertex(i)->info();
-    out.push_back(ids);
-  }
-  std::sort(out.begin(), out.end());
-  return out;
-}
-
 struct Compared
 {
   std::size_t byLink{ 0 };
@@ -96,7 +81,7 @@ RemoveFromBoth(const std::vector<std::array<int, 3>> & points, const std::vector
     theirsV.push_back(theirs.insert(p));
     theirsV.back()->info() = uint32_t(i);
   }
-  EXPECT_EQ(Listed(mine), Listed(theirs));
+  EXPECT_EQ(dcv::test::ListedCells(mine), dcv::test::ListedCells(theirs));
   dcv::VertexRemovalScratch<Delaunay> scratch;
   std::vector<Delaunay::Cell_handle>  hole, created, cgal;
   Compared                            result;
@@ -112,7 +97,7 @@ RemoveFromBoth(const std::vector<std::array<int, 3>> & points, const std::vector
     theirs.remove_and_give_new_cells(theirsV[i], std::back_inserter(cgal));
     ++result.removals;
     EXPECT_TRUE(mine.is_valid()) << "after removing vertex " << i;
-    const Cells a = Listed(mine), b = Listed(theirs);
+    const Cells a = dcv::test::ListedCells(mine), b = dcv::test::ListedCells(theirs);
     EXPECT_EQ(a, b) << "after removing vertex " << i;
     if (a != b)
       break;
