@@ -19,11 +19,11 @@
 // same cells with their vertices in the same order (what the least squares and the costs read), on
 // random points, on whole lattices (every cell cospherical with its neighbours) and on the hull.
 #include "dcvVertexRemoval.h"
+#include "dcvGridKernel.h"
 #include "dcvTestUtilities.h"
 
 #include <CGAL/Delaunay_triangulation_3.h>
 #include <CGAL/Delaunay_triangulation_cell_base_3.h>
-#include <CGAL/Exact_predicates_inexact_constructions_kernel.h>
 #include <CGAL/Triangulation_cell_base_with_info_3.h>
 #include <CGAL/Triangulation_vertex_base_with_info_3.h>
 
@@ -51,7 +51,7 @@ struct CellInfo // as the engine's: an id, NoCell when made
     id = v;
   }
 };
-using Kernel = CGAL::Exact_predicates_inexact_constructions_kernel;
+using Kernel = dcv::GridKernel; // the library's (src/dcvTetrahedralization.cxx)
 using VertexBase = CGAL::Triangulation_vertex_base_with_info_3<uint32_t, Kernel>;
 using CellBase =
   CGAL::Triangulation_cell_base_with_info_3<CellInfo, Kernel, CGAL::Delaunay_triangulation_cell_base_3<Kernel>>;
