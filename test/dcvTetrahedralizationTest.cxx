@@ -438,7 +438,8 @@ TEST(Tetrahedralization, PointsBeyondTheLargestGridAreRefusedBeforeAnyChange)
   mesh.Insert({ MaximumGridExtent - 2, 1, MaximumGridExtent / 2 }, Tetrahedralization::NoCell, killed, created);
   EXPECT_TRUE(mesh.IsValid());
   const std::size_t cells = mesh.NumberOfFiniteCells();
-  for (const GridPoint & p : { GridPoint{ MaximumGridExtent + 1, 0, 0 }, GridPoint{ 0, -1, 0 }, GridPoint{ 3, 4, 70000 } })
+  for (const GridPoint & p :
+       { GridPoint{ MaximumGridExtent + 1, 0, 0 }, GridPoint{ 0, -1, 0 }, GridPoint{ 3, 4, 70000 } })
   {
     EXPECT_THROW(mesh.Insert(p, Tetrahedralization::NoCell, killed, created), std::invalid_argument);
     EXPECT_THROW(mesh.InsertMany({ { 1, 1, 1 }, p }), std::invalid_argument);
