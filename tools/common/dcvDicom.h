@@ -115,6 +115,22 @@ struct DicomResampling
 DicomResampling
 CheckDicomSlices(const std::string & name, const std::vector<DicomSlice> & slices, bool resample = false);
 
+/** Puts `image` on the grid `r` describes: its origin, spacing and direction. */
+template <typename TImage>
+void
+PlaceOnGrid(TImage & image, const DicomResampling & r)
+{
+  typename TImage::DirectionType direction;
+  for (unsigned i = 0; i < 3; ++i)
+  {
+    for (unsigned j = 0; j < 3; ++j)
+      direction(i, j) = r.direction[3 * i + j];
+  }
+  image.SetOrigin(r.origin.data());
+  image.SetSpacing(r.spacing.data());
+  image.SetDirection(direction);
+}
+
 /** Reads the series (as floats, rescaled) and resamples it as `r` says: linearly between neighbouring
  * slices onto the new spacing, then, for a tilted series, onto the grid of the orientation's normal with
  * ITK's ResampleImageFilter (linear interpolation; where no slice reaches: the series' minimum). */

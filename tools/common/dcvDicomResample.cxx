@@ -77,23 +77,14 @@ ReadResampledDicomSeries(const DicomSeries & series, const DicomResampling & r)
         out[i] = float((1.0 - w) * a[i] + w * b[i]);
     }
   }
-  ImageType::PointType     origin;
-  ImageType::SpacingType   spacing;
-  ImageType::DirectionType direction;
-  for (unsigned i = 0; i < 3; ++i)
-  {
-    origin[i] = r.origin[i];
-    spacing[i] = r.spacing[i];
-    for (unsigned j = 0; j < 3; ++j)
-      direction(i, j) = r.direction[3 * i + j];
-  }
+  PlaceOnGrid(*even, r);
   if (!r.tilted)
   {
-    even->SetOrigin(origin);
-    even->SetSpacing(spacing);
-    even->SetDirection(direction);
     return even;
   }
+  const ImageType::PointType     origin = even->GetOrigin();
+  const ImageType::SpacingType   spacing = even->GetSpacing();
+  const ImageType::DirectionType direction = even->GetDirection();
   // The slices as they lie: each offset by the tilt, the third axis slanted (not orthogonal to the
   // others, which ITK's index-to-point mapping allows); resampled onto the orientation's normal.
   std::array<double, 3> slant;

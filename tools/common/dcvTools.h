@@ -135,17 +135,8 @@ ReadVolume(const VolumeInput & v)
   }
   // The grid the checks found in the slices' headers (CheckDicomSlices), as for a resampled series: the
   // series reader's own comes from GDCM, which reads no image plane in Secondary Capture images.
-  typename itk::Image<T, 3>::Pointer       image = reader->GetOutput();
-  const DicomResampling &                  g = v.resampling;
-  typename itk::Image<T, 3>::DirectionType direction;
-  for (unsigned i = 0; i < 3; ++i)
-  {
-    for (unsigned j = 0; j < 3; ++j)
-      direction[i][j] = g.direction[3 * i + j];
-  }
-  image->SetOrigin(g.origin.data());
-  image->SetSpacing(g.spacing.data());
-  image->SetDirection(direction);
+  typename itk::Image<T, 3>::Pointer image = reader->GetOutput();
+  PlaceOnGrid(*image, v.resampling);
   return image;
 }
 
