@@ -14,7 +14,10 @@ find_package(TBB REQUIRED) # the encoder's threads
 find_package(PkgConfig REQUIRED)
 pkg_check_modules(OpenJPEG REQUIRED IMPORTED_TARGET libopenjp2>=2.5)
 target_link_libraries(DelaunayCompression ${_dcv_private} CGAL::CGAL Eigen3::Eigen ZLIB::ZLIB Threads::Threads
-  TBB::tbb PkgConfig::OpenJPEG)
+  TBB::tbb TBB::tbbmalloc PkgConfig::OpenJPEG)
+# CGAL's concurrent triangulation (the decoder's, dcvTetrahedralize.cxx) is compiled with TBB; defined for
+# every source, so that CGAL's classes are the same in each.
+target_compile_definitions(DelaunayCompression PRIVATE CGAL_LINKED_WITH_TBB)
 
 # The .dcv image and mesh IO as an ITK plugin: a directory holding it, in ITK_AUTOLOAD_PATH, lets any
 # ITK program read and write .dcv files without linking the module.

@@ -16,7 +16,6 @@
  *
  *=========================================================================*/
 #include "dcvApproximation.h"
-#include "dcvTetrahedralization.h"
 
 #include <algorithm>
 #include <cmath>
@@ -26,55 +25,6 @@
 
 namespace dcv
 {
-
-namespace
-{
-/** Spreads the low 21 bits of v to every third bit. */
-uint64_t
-Spread(uint64_t v)
-{
-  v &= 0x1fffff;
-  v = (v | (v << 32)) & 0x1f00000000ffffULL;
-  v = (v | (v << 16)) & 0x1f0000ff0000ffULL;
-  v = (v | (v << 8)) & 0x100f00f00f00f00fULL;
-  v = (v | (v << 4)) & 0x10c30c30c30c30c3ULL;
-  v = (v | (v << 2)) & 0x1249249249249249ULL;
-  return v;
-}
-} // namespace
-
-std::vector<Tetrahedron>
-Tetrahedralize(const std::vector<GridPoint> & points, const GridScale & scale)
-{
-  Tetrahedralization mesh;
-  mesh.SetScale(scale);
-  mesh.InsertMany(points);
-  const auto cells = mesh.FiniteCells();
-  // CGAL lists cells in memory order, which is scattered in space; rasterizing them in the Morton
-  // order of their centroids keeps the voxels being written in cache (several times faster).
-  std::vector<std::pair<uint64_t, Tetrahedron>> keyed;
-  keyed.reserve(cells.size());
-  for (const auto & c : cells)
-  {
-    uint64_t sum[3] = { 0, 0, 0 };
-    for (auto v : c.vertices)
-    {
-      for (int d = 0; d < 3; ++d)
-      {
-        sum[d] += uint64_t(points[v][d]);
-      }
-    }
-    keyed.emplace_back(Spread(sum[0]) | (Spread(sum[1]) << 1) | (Spread(sum[2]) << 2), c.vertices);
-  }
-  std::sort(keyed.begin(), keyed.end(), [](const auto & a, const auto & b) { return a.first < b.first; });
-  std::vector<Tetrahedron> out;
-  out.reserve(keyed.size());
-  for (const auto & k : keyed)
-  {
-    out.push_back(k.second);
-  }
-  return out;
-}
 
 void
 CheckPoints(const GridSize & grid, const std::vector<GridPoint> & points)

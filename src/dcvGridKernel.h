@@ -25,9 +25,13 @@
 // 65535 x 16 at most), so the determinants are exact in 64 and 128 bits at once. The signs are those of
 // the same determinants, so the triangulation is the same cell for cell (CGAL's symbolic perturbation of
 // cospherical points orders them by their coordinates and asks the same orientations).
+#include "dcvRasterizer.h"
+
 #include <CGAL/Exact_predicates_inexact_constructions_kernel.h>
 
 #include <cstdint>
+#include <stdexcept>
+#include <string>
 
 namespace dcv
 {
@@ -119,6 +123,26 @@ struct GridKernel : public CGAL::Epick
     return Side_of_oriented_sphere_3();
   }
 };
+static_assert(int64_t(MaximumGridExtent - 1) * MaximumGridScale < GridKernel::CoordinateLimit,
+              "the integer predicates hold every grid");
+
+/** The point in the space scaled by `s`, where the kernel's integer predicates need coordinates in
+ * [0, GridKernel::CoordinateLimit): every grid of the format (MaximumGridExtent x MaximumGridScale).
+ * Throws std::invalid_argument for a point outside that range. */
+inline GridKernel::Point_3
+ToGridKernel(const GridPoint & p, const GridScale & s)
+{
+  for (int i = 0; i < 3; ++i)
+  {
+    if (p[i] < 0 || int64_t(p[i]) * s[i] >= GridKernel::CoordinateLimit)
+    {
+      throw std::invalid_argument("Tetrahedralization: point (" + std::to_string(p[0]) + ", " + std::to_string(p[1]) +
+                                  ", " + std::to_string(p[2]) + ") lies outside the grids it can hold");
+    }
+  }
+  return GridKernel::Point_3(double(p[0]) * s[0], double(p[1]) * s[1], double(p[2]) * s[2]);
+}
+
 } // namespace dcv
 
 #endif

@@ -101,24 +101,6 @@ CellOf(Tetrahedralization::CellId id, const CellHandle & c)
   return { id, { c->vertex(0)->info(), c->vertex(1)->info(), c->vertex(2)->info(), c->vertex(3)->info() } };
 }
 
-static_assert(int64_t(MaximumGridExtent - 1) * MaximumGridScale < GridKernel::CoordinateLimit,
-              "the integer predicates hold every grid");
-
-// The point in the scaled space, where the kernel's integer predicates need coordinates in
-// [0, GridKernel::CoordinateLimit): every grid of the format (MaximumGridExtent x MaximumGridScale).
-CgalPoint
-ToCgal(const GridPoint & p, const GridScale & s)
-{
-  for (int i = 0; i < 3; ++i)
-  {
-    if (p[i] < 0 || int64_t(p[i]) * s[i] >= GridKernel::CoordinateLimit)
-    {
-      throw std::invalid_argument("Tetrahedralization: point (" + std::to_string(p[0]) + ", " + std::to_string(p[1]) +
-                                  ", " + std::to_string(p[2]) + ") lies outside the grids it can hold");
-    }
-  }
-  return CgalPoint(double(p[0]) * s[0], double(p[1]) * s[1], double(p[2]) * s[2]);
-}
 } // namespace
 
 struct Tetrahedralization::Impl
@@ -252,7 +234,7 @@ Tetrahedralization::InsertMany(const std::vector<GridPoint> & points)
   const VertexId first = VertexId(d.points.size());
   for (std::size_t i = 0; i < points.size(); ++i)
   {
-    input.emplace_back(ToCgal(points[i], d.scale), first + VertexId(i)); // checks before anything changes
+    input.emplace_back(ToGridKernel(points[i], d.scale), first + VertexId(i)); // checks before anything changes
   }
   d.points.insert(d.points.end(), points.begin(), points.end());
   d.vertices.resize(d.points.size());
@@ -277,7 +259,7 @@ Tetrahedralization::Insert(const GridPoint & p, CellId hint, std::vector<CellId>
   killed.clear();
   created.clear();
   const VertexId  id = VertexId(d.points.size());
-  const CgalPoint q = ToCgal(p, d.scale);
+  const CgalPoint q = ToGridKernel(p, d.scale);
   if (d.dt.dimension() < 3)
   {
     // Lower-dimensional start (the first corners): let CGAL build it and number what exists.
