@@ -49,8 +49,8 @@ Cases()
       for (int32_t x = 0; x < 30; ++x)
         lattice.push_back({ x, y, z });
   cases.push_back({ "lattice", lattice, { { 1, 1, 1 } } });
-  cases.push_back({ "random, scale 2,3,5", test::RandomPoints(GridSize{ 64, 60, 40 }, 30000, 11), { { 2, 3, 5 } } });
-  cases.push_back({ "slab, scale 1,1,16", test::RandomPoints(GridSize{ 200, 180, 3 }, 25000, 5), { { 1, 1, 16 } } });
+  cases.push_back({ "random, scale 2,3,5", test::RandomPoints(GridSize{ 64, 60, 40 }, 21000, 11), { { 2, 3, 5 } } });
+  cases.push_back({ "slab, scale 1,1,16", test::RandomPoints(GridSize{ 200, 180, 3 }, 21000, 5), { { 1, 1, 16 } } });
   return cases;
 }
 
