@@ -35,15 +35,15 @@ rm -f "$out/include/DelaunayCompressionExport.h.new"
 
 # -frounding-math as CGAL's CMake gives gcc: its interval arithmetic switches the rounding mode.
 flags=(-std=c++17 -O1 -g -fno-omit-frame-pointer -frounding-math -fsanitize=address,undefined -fno-sanitize-recover=undefined
-  -Iinclude -I"$out/include" -isystem /usr/include/eigen3 -DNDEBUG)
+  -Iinclude -I"$out/include" -isystem /usr/include/eigen3 -DNDEBUG -DCGAL_LINKED_WITH_TBB)
 core=(dcvFileFormat dcvCodec dcvArithmeticCoder dcvPositionCoder dcvApproximation dcvTetrahedralization
-  dcvResidualLayer dcvInterSliceWavelet)
+  dcvTetrahedralize dcvResidualLayer dcvInterSliceWavelet)
 # What src/itkDCV*IO.cxx need besides: the encoder (DCVImageIO writes too).
 encoder=(dcvEncoder dcvRateControl dcvRefinementEngine dcvPixelSource)
 compile() { # SOURCE OBJECT COMPILER FLAGS...: when the source or a header is newer than the object
   local source=$1 object=$2
   shift 2
-  if [ ! -f "$object" ] || [ -n "$(find "$source" include fuzz/*.h -newer "$object" -name '*.[hc]*' | head -1)" ]; then
+  if [ ! -f "$object" ] || [ -n "$(find "$source" include src/*.h fuzz/*.h -newer "$object" -name '*.[hc]*' | head -1)" ]; then
     echo "$1 $source"
     "$@" -c "$source" -o "$object"
   fi
@@ -82,7 +82,7 @@ for s in src/itkDCVImageIO.cxx src/itkDCVMeshIO.cxx src/itkDCVEncoderIntegers.cx
   itk_objects+=("$o")
 done
 for p in "${compiling[@]}"; do wait "$p"; done
-libs=(-lz -lopenjp2 -ltbb -lgmp -lmpfr -pthread)
+libs=(-lz -lopenjp2 -ltbb -ltbbmalloc -lgmp -lmpfr -pthread)
 itk_libs=(-L/usr/lib -lITKIOMeshBase-5.2 -lITKIOImageBase-5.2 -lITKCommon-5.2 -litkvnl_algo-5.2 -litkvnl-5.2
   -litksys-5.2 -Wl,-rpath,/usr/lib)
 link() { # TARGET SOURCE [OPTIONS...]: relinked when the source, a fuzz/ header or an object is newer
