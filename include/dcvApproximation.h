@@ -126,7 +126,9 @@ AddResidual(T splineVoxel, const Residual & r, uint64_t voxel)
 
 /** The Delaunay tetrahedralization of grid points (CGAL, exact predicates, symbolic perturbation),
  * listed in a spatially coherent order:
- * unique for a point set, so it equals the encoder's mesh whatever the insertion order.
+ * unique for a point set, so it equals the encoder's mesh whatever the insertion order. Each cell is
+ * positively oriented, its vertex ids ascending but for the last two; the listing is the same whatever
+ * the threads (from 20,000 points they build it together).
  * Throws std::invalid_argument on duplicate points. */
 DelaunayCompression_EXPORT std::vector<Tetrahedron>
 Tetrahedralize(const std::vector<GridPoint> & points, const GridScale & scale = { { 1, 1, 1 } });

@@ -126,6 +126,20 @@ struct GridKernel : public CGAL::Epick
 static_assert(int64_t(MaximumGridExtent - 1) * MaximumGridScale < GridKernel::CoordinateLimit,
               "the integer predicates hold every grid");
 
+/** Throws std::invalid_argument unless each axis scale is 1 to MaximumGridScale. */
+inline void
+CheckGridScale(const GridScale & scale)
+{
+  for (int32_t s : scale)
+  {
+    if (s < 1 || s > MaximumGridScale)
+    {
+      throw std::invalid_argument("Tetrahedralization: each axis scale must be 1 to " +
+                                  std::to_string(MaximumGridScale) + ", got " + std::to_string(s));
+    }
+  }
+}
+
 /** The point in the space scaled by `s`, where the kernel's integer predicates need coordinates in
  * [0, GridKernel::CoordinateLimit): every grid of the format (MaximumGridExtent x MaximumGridScale).
  * Throws std::invalid_argument for a point outside that range. */

@@ -210,14 +210,7 @@ Tetrahedralization::~Tetrahedralization() = default;
 void
 Tetrahedralization::SetScale(const GridScale & scale)
 {
-  for (int32_t s : scale)
-  {
-    if (s < 1 || s > MaximumGridScale)
-    {
-      throw std::invalid_argument("Tetrahedralization: each axis scale must be 1 to " +
-                                  std::to_string(MaximumGridScale) + ", got " + std::to_string(s));
-    }
-  }
+  CheckGridScale(scale);
   if (!m_Impl->points.empty())
   {
     throw std::logic_error("Tetrahedralization: the scale is set before any point is inserted");

@@ -123,14 +123,7 @@ Spread(uint64_t v)
 std::vector<Tetrahedron>
 Tetrahedralize(const std::vector<GridPoint> & points, const GridScale & scale)
 {
-  for (int32_t s : scale)
-  {
-    if (s < 1 || s > MaximumGridScale)
-    {
-      throw std::invalid_argument("Tetrahedralization: each axis scale must be 1 to " +
-                                  std::to_string(MaximumGridScale) + ", got " + std::to_string(s));
-    }
-  }
+  CheckGridScale(scale);
   std::vector<std::pair<GridKernel::Point_3, uint32_t>> input;
   input.reserve(points.size());
   double upper[3] = { 1.0, 1.0, 1.0 };
