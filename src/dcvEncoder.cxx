@@ -279,6 +279,10 @@ Corners(const GridSize & grid, const GridScale & scale, double value)
   return a;
 }
 
+/** Slices this many times as thick as their pixels are wide or more: the corners' layer tries one
+ * JPEG 2000 component per slice as well as the mosaic. */
+constexpr double ThickSlices = 1.5;
+
 /** Below this many bytes a codestream is mostly its own headers. */
 constexpr std::size_t MinimumCodestream = 256;
 
@@ -342,21 +346,40 @@ TryCorners(const EncoderInput & input, const FileHeader & header, std::size_t fi
   const std::size_t room = LayerRoom(candidate.header, step, fileBytes, 0);
   if (room < MinimumCodestream)
     return candidate;
-  // The codings in the order that spares trials. Over the dev volumes at 0.03125 and 0.125 bpv (20
-  // runs), 9/7 beat 5/3 every time and one component per slice beat the mosaic once, by 0.05 dB;
-  // the inter-slice wavelet won wherever slices are alike (avg152t1 at 0.125 bpv: 35.3 dB with 4
-  // levels, 30.0 with the points, 26.2 without it; the 5 mm CT series at 0.03125: 33.7 dB with 2
-  // levels, 31.5 before) and lost on ct-avm-4mm (1 level: -1.2 dB), where components come next.
+  // The levels of the inter-slice wavelet by descent on the mosaic from 2 levels (the best of one
+  // level more or less, as long as it decodes closer), then one component per slice at those levels.
+  // Over the 40 dev runs (docs/rd/levels.md) every level count between 0 and 5 was the best somewhere
+  // (norm-256 at 0.25 bpv: 57.35 dB with 1 level, 56.90 with 2; avg152t1 at 0.03125: 27.03 with 5, 26.72
+  // with 4), each arrangement's error against the levels had one minimum, and components won on the 5 mm
+  // CT series alone (slices 11 times as thick as wide), at the mosaic's best levels (53.49 dB against
+  // 53.28 at 0.25 bpv), and lost on every near-isotropic volume (norm-256 at 0.25 bpv: 57.18). 9/7 beat
+  // 5/3 on every run tried.
   candidate.search = std::make_unique<ResidualSearch>(input.voxels, type, candidate.spline, step, room);
   ResidualSearch & search = *candidate.search;
   const int32_t    most = InterSliceLevels(input.header.size.z);
-  const double     flat = search.Try({ Wavelet::Irreversible97, Arrangement::Mosaic, 0 });
-  const double twoLevels = most > 0 ? search.Try({ Wavelet::Irreversible97, Arrangement::Mosaic, std::min(2, most) })
-                                    : std::numeric_limits<double>::infinity();
-  if (twoLevels < flat && most > 2)
-    search.Try({ Wavelet::Irreversible97, Arrangement::Mosaic, std::min(4, most) });
-  else if (!(twoLevels < flat))
-    search.Try({ Wavelet::Irreversible97, Arrangement::Components, 0 });
+  auto    mosaic = [&](int32_t levels) { return search.Try({ Wavelet::Irreversible97, Arrangement::Mosaic, levels }); };
+  int32_t levels = std::min(2, most);
+  double  error = mosaic(levels);
+  for (const int32_t direction : { -1, +1 })
+  {
+    bool moved = false;
+    for (int32_t next = levels + direction; next >= 0 && next <= most; next += direction)
+    {
+      const double e = mosaic(next);
+      if (!(e < error))
+        break;
+      levels = next;
+      error = e;
+      moved = true;
+    }
+    if (moved)
+      break; // the other side was worse than where the descent started
+  }
+  // Thick slices only: slices that differ much gain nothing from lying side by side in the mosaic, whose
+  // 2D wavelet then codes the borders between them (a trial costs about a second at 256^3).
+  const auto & spacing = input.header.spacing;
+  if (input.header.size.z > 1 && spacing[2] >= ThickSlices * std::max(spacing[0], spacing[1]))
+    search.Try({ Wavelet::Irreversible97, Arrangement::Components, levels });
   return candidate;
 }
 

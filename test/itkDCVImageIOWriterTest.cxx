@@ -19,6 +19,7 @@
 // does, the PSNR it reports is the decoder's, a quality target is met, and a pipeline runs the
 // approximation filter once.
 #include "dcvCodec.h"
+#include "dcvInterSliceWavelet.h"
 #include "dcvPhantom.h"
 #include "dcvTestUtilities.h"
 #include "itkDCVEncoder.h"
@@ -356,7 +357,9 @@ TEST(Encoder, AbandonsThePointsWhereTheResidualLayerWinsByFar)
   options.bitsPerVoxel = 0.5;
   const auto r = itk::DCVEncode(image.GetPointer(), options);
   EXPECT_EQ(r.header.numberOfPoints, 8u);
-  EXPECT_GT(r.header.residualLevels, 0);
+  // Each level halves the slices left to code, so the corners' layer's descent over the levels goes on to
+  // the most the 32 slices take (the earlier choice among 0, 2 and 4 levels stopped at 4).
+  EXPECT_EQ(r.header.residualLevels, dcv::InterSliceLevels(32));
   EXPECT_EQ(r.adjustments, 0u) << "the points' count was fitted";
   EXPECT_GT(r.psnr, 30.0);
   // The phantom at a low rate: the points win, and are not abandoned.
