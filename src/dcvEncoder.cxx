@@ -283,6 +283,10 @@ Corners(const GridSize & grid, const GridScale & scale, double value)
  * JPEG 2000 component per slice as well as the mosaic. */
 constexpr double ThickSlices = 1.5;
 
+/** At most this many bits a voxel, the corners' layer's descent tries more levels of the inter-slice
+ * wavelet before fewer (docs/rd/levels.md: the best level count falls as the rate rises). */
+constexpr double UpFirstBitsPerVoxel = 0.125;
+
 /** Below this many bytes a codestream is mostly its own headers. */
 constexpr std::size_t MinimumCodestream = 256;
 
@@ -346,8 +350,8 @@ TryCorners(const EncoderInput & input, const FileHeader & header, std::size_t fi
   const std::size_t room = LayerRoom(candidate.header, step, fileBytes, 0);
   if (room < MinimumCodestream)
     return candidate;
-  // The levels of the inter-slice wavelet by descent on the mosaic from 2 levels (the best of one
-  // level more or less, as long as it decodes closer), then one component per slice at those levels.
+  // The levels of the inter-slice wavelet by descent on the mosaic from 2 levels (one level more or
+  // less, on as long as it decodes closer), then one component per slice at those levels.
   // Over the 40 dev runs (docs/rd/levels.md) every level count between 0 and 5 was the best somewhere
   // (norm-256 at 0.25 bpv: 57.35 dB with 1 level, 56.90 with 2; avg152t1 at 0.03125: 27.03 with 5, 26.72
   // with 4), each arrangement's error against the levels had one minimum, and components won on the 5 mm
@@ -360,7 +364,10 @@ TryCorners(const EncoderInput & input, const FileHeader & header, std::size_t fi
   auto    mosaic = [&](int32_t levels) { return search.Try({ Wavelet::Irreversible97, Arrangement::Mosaic, levels }); };
   int32_t levels = std::min(2, most);
   double  error = mosaic(levels);
-  for (const int32_t direction : { -1, +1 })
+  // More levels first at low rates, where they won more often (the trial a wrong first step costs is
+  // about a second at 256^3).
+  const bool lowRate = double(fileBytes) * 8.0 <= UpFirstBitsPerVoxel * double(input.header.size.NumberOfVoxels());
+  for (const int32_t direction : { lowRate ? +1 : -1, lowRate ? -1 : +1 })
   {
     bool moved = false;
     for (int32_t next = levels + direction; next >= 0 && next <= most; next += direction)
