@@ -362,6 +362,12 @@ TEST(Encoder, AbandonsThePointsWhereTheResidualLayerWinsByFar)
   EXPECT_EQ(r.header.residualLevels, dcv::InterSliceLevels(32));
   EXPECT_EQ(r.adjustments, 0u) << "the points' count was fitted";
   EXPECT_GT(r.psnr, 30.0);
+  // At 1/8 bit a voxel or less the descent tries more levels first: the same choice.
+  options.bitsPerVoxel = 0.125;
+  const auto low = itk::DCVEncode(image.GetPointer(), options);
+  EXPECT_EQ(low.header.numberOfPoints, 8u);
+  EXPECT_EQ(low.header.residualLevels, dcv::InterSliceLevels(32));
+  options.bitsPerVoxel = 0.5;
   // The phantom at a low rate: the points win, and are not abandoned.
   const auto phantom = itk::DCVEncode(Phantom({ 56, 48, 40 }).GetPointer(), options);
   EXPECT_GT(phantom.header.numberOfPoints, 8u);
