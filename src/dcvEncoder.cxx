@@ -364,8 +364,7 @@ TryCorners(const EncoderInput & input, const FileHeader & header, std::size_t fi
   auto    mosaic = [&](int32_t levels) { return search.Try({ Wavelet::Irreversible97, Arrangement::Mosaic, levels }); };
   int32_t levels = std::min(2, most);
   double  error = mosaic(levels);
-  // More levels first at low rates, where they won more often (the trial a wrong first step costs is
-  // about a second at 256^3).
+  // More levels first at low rates, where they won more often: a wrong first step costs a trial.
   const bool lowRate = double(fileBytes) * 8.0 <= UpFirstBitsPerVoxel * double(input.header.size.NumberOfVoxels());
   for (const int32_t direction : { lowRate ? +1 : -1, lowRate ? -1 : +1 })
   {
