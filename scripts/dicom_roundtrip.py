@@ -8,8 +8,11 @@ Needs numpy and pydicom (Debian: python3-numpy, python3-pydicom, for /usr/bin/py
 import glob
 import sys
 
-import numpy as np
-import pydicom
+try:
+    import numpy as np
+    import pydicom
+except ImportError as e:
+    sys.exit(f"dicom_roundtrip: {e.name} is missing (apt-get install python3-{e.name}); run with /usr/bin/python3")
 
 
 def read_series(directory):
