@@ -351,7 +351,7 @@ TryCorners(const EncoderInput & input, const FileHeader & header, std::size_t fi
   if (room < MinimumCodestream)
     return candidate;
   // The levels of the inter-slice wavelet by descent on the mosaic from 2 levels (one level more or
-  // less, on as long as it decodes closer), then one component per slice at those levels.
+  // fewer at a time, as long as it decodes closer), then one component per slice at those levels.
   // Over the 40 dev runs (docs/rd/levels.md) every level count between 0 and 5 was the best somewhere
   // (norm-256 at 0.25 bpv: 57.35 dB with 1 level, 56.90 with 2; avg152t1 at 0.03125: 27.03 with 5, 26.72
   // with 4), each arrangement's error against the levels had one minimum, and components won on the 5 mm
@@ -365,8 +365,9 @@ TryCorners(const EncoderInput & input, const FileHeader & header, std::size_t fi
   int32_t levels = std::min(2, most);
   double  error = mosaic(levels);
   // More levels first at low rates, where they won more often: a wrong first step costs a trial.
-  const bool lowRate = double(fileBytes) * 8.0 <= UpFirstBitsPerVoxel * double(input.header.size.NumberOfVoxels());
-  for (const int32_t direction : { lowRate ? +1 : -1, lowRate ? -1 : +1 })
+  const int32_t first =
+    double(fileBytes) * 8.0 <= UpFirstBitsPerVoxel * double(input.header.size.NumberOfVoxels()) ? +1 : -1;
+  for (const int32_t direction : { first, -first })
   {
     bool moved = false;
     for (int32_t next = levels + direction; next >= 0 && next <= most; next += direction)
