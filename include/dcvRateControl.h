@@ -152,7 +152,11 @@ struct BudgetResult
  * AbandonAfterFirstRun, AbandonAfterSteps). `competitorReady`, where given, says whether `competitor`
  * would answer at once: while it would not, the method goes on, and the check on the first refinement's
  * state is made when it would, at a progress report of the schedule or after it (the same decision
- * as waiting for it).
+ * as waiting for it). `competitorBound`, where given, answers at once with a squared error the
+ * competitor's is at most (its best so far while it is being made, infinity before): until the
+ * competitor is ready, the check on the first refinement's state is also made against it, right after
+ * the refinement and at each progress report of the schedule. Where it abandons the points, the check
+ * against the competitor would too, later: the same decision, without the rest of the schedule.
  *
  * Point count: the coded size is nearly proportional to the count, at a number of bits per point that
  * grows slowly as points get sparser. So the method runs once, with a count predicted by
@@ -167,8 +171,8 @@ DelaunayCompression_EXPORT BudgetResult
 ApproximateToBudget(RefinementEngine & engine, std::size_t payloadBytes, double q0,
                     const std::vector<double> &                stepMultiples = { 1.0 },
                     const RefinementEngine::ProgressFunction & progress = RefinementEngine::ProgressFunction(),
-                    const std::function<double()> &            competitor = {},
-                    const std::function<bool()> &              competitorReady = {});
+                    const std::function<double()> & competitor = {}, const std::function<bool()> & competitorReady = {},
+                    const std::function<double()> & competitorBound = {});
 
 /** The squared error a decoder's image will have for the engine's current approximation. */
 using DecodedErrorFunction = std::function<double(const RefinementEngine &)>;

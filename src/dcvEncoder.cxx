@@ -24,7 +24,9 @@
 #include "dcvMemory.h"
 
 #include <algorithm>
+#include <atomic>
 #include <chrono>
+#include <functional>
 #include <future>
 #include <cmath>
 #include <cstdio>
@@ -321,10 +323,11 @@ struct CornersCandidate
 };
 
 /** Codes the residual layer over the corners. Done before the points, whose rate control stops as soon
- * as they cannot reach its error. */
+ * as they cannot reach its error. `tried`, where given, is called after each trial with the best error
+ * so far (the most the candidate's error will be). */
 CornersCandidate
 TryCorners(const EncoderInput & input, const FileHeader & header, std::size_t fileBytes, double minimum, double maximum,
-           double peak)
+           double peak, const std::function<void(double)> & tried = {})
 {
   const PixelType  type = input.header.pixelType;
   const double     step = ResidualStep(peak, IsInteger(type));
@@ -361,7 +364,13 @@ TryCorners(const EncoderInput & input, const FileHeader & header, std::size_t fi
   candidate.search = std::make_unique<ResidualSearch>(input.voxels, type, candidate.spline, step, room);
   ResidualSearch & search = *candidate.search;
   const int32_t    most = InterSliceLevels(input.header.size.z);
-  auto    mosaic = [&](int32_t levels) { return search.Try({ Wavelet::Irreversible97, Arrangement::Mosaic, levels }); };
+  auto             trial = [&](const ResidualCoding & coding) {
+    const double e = search.Try(coding);
+    if (tried)
+      tried(search.BestError());
+    return e;
+  };
+  auto    mosaic = [&](int32_t levels) { return trial({ Wavelet::Irreversible97, Arrangement::Mosaic, levels }); };
   int32_t levels = std::min(2, most);
   double  error = mosaic(levels);
   // More levels first at low rates, where they won more often: a wrong first step costs a trial.
@@ -386,7 +395,7 @@ TryCorners(const EncoderInput & input, const FileHeader & header, std::size_t fi
   // 2D wavelet then codes the borders between them (a trial costs about a second at 256^3).
   const auto & spacing = input.header.spacing;
   if (input.header.size.z > 1 && spacing[2] >= ThickSlices * std::max(spacing[0], spacing[1]))
-    search.Try({ Wavelet::Irreversible97, Arrangement::Components, levels });
+    trial({ Wavelet::Irreversible97, Arrangement::Components, levels });
   return candidate;
 }
 
@@ -525,6 +534,9 @@ Run(const EncoderInput & input, const EncoderOptions & o, bool coded, std::vecto
   // at 0.03125 bpv 3% faster, the 5 mm CT series at 0.125 bpv 10% (docs/profile.md, second session of
   // 12-05). With one (dcv batch --jobs 0 on every core) the points have no parallel part to feed, and a
   // corners' layer given way would be asked for only after their whole schedule.
+  // The corners' best error so far, for rate control's check before the layer is done (declared before
+  // the future, whose destructor waits for the thread that writes it).
+  std::atomic<double>           cornersBound{ std::numeric_limits<double>::infinity() };
   std::future<CornersCandidate> cornersLater;
   if (layers)
   {
@@ -533,8 +545,10 @@ Run(const EncoderInput & input, const EncoderOptions & o, bool coded, std::vecto
         GiveWayToOtherThreads(); // a thread of its own: std::launch::async
       return WithThreads(threads, [&] {
         const auto       start = std::chrono::steady_clock::now();
-        CornersCandidate c =
-          TryCorners(input, header, std::size_t(fileBytes), range.first, range.second, parameters.peak);
+        CornersCandidate c = TryCorners(
+          input, header, std::size_t(fileBytes), range.first, range.second, parameters.peak, [&](double error) {
+            cornersBound.store(error);
+          });
         r.timings.residualLayer += std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
         return c;
       });
@@ -558,7 +572,8 @@ Run(const EncoderInput & input, const EncoderOptions & o, bool coded, std::vecto
         layers ? std::function<double()>([&] { return cornersDone().Error(); }) : std::function<double()>(),
         [&] {
           return !cornersLater.valid() || cornersLater.wait_for(std::chrono::seconds(0)) == std::future_status::ready;
-        });
+        },
+        layers ? std::function<double()>([&] { return cornersBound.load(); }) : std::function<double()>());
       r.quantizationStep = b.step;
       r.adjustments = b.adjustments;
       payload = std::move(b.payload);

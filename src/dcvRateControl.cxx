@@ -105,7 +105,8 @@ private:
 BudgetResult
 ApproximateToBudget(RefinementEngine & engine, std::size_t payloadBytes, double q0,
                     const std::vector<double> & stepMultiples, const RefinementEngine::ProgressFunction & progress,
-                    const std::function<double()> & competitor, const std::function<bool()> & competitorReady)
+                    const std::function<double()> & competitor, const std::function<bool()> & competitorReady,
+                    const std::function<double()> & competitorBound)
 {
   const double step = engine.GetParameters().quantizationStep;
   if (!(step > 0.0) || stepMultiples.empty() ||
@@ -185,9 +186,12 @@ ApproximateToBudget(RefinementEngine & engine, std::size_t payloadBytes, double 
   };
   const double refinedError = engine.GetSquaredError();
   double       refinedSize = 0.0;
-  auto         abandonsRefined = [&] { // false against an infinite error
-    return carried(refinedError, refinedSize) / AbandonAfterRefinement > competitorError;
+  auto         abandonsRefinedBy = [&](double error) { // false against an infinite error
+    return carried(refinedError, refinedSize) / AbandonAfterRefinement > error;
   };
+  auto abandonsRefined = [&] { return abandonsRefinedBy(competitorError); };
+  // Before the competitor is ready: against its bound, which its error will not exceed.
+  auto abandonsRefinedByBound = [&] { return competitorBound && abandonsRefinedBy(competitorBound()); };
   auto abandon = [&] {
     result.abandoned = true;
     result.payload.clear();
@@ -201,7 +205,7 @@ ApproximateToBudget(RefinementEngine & engine, std::size_t payloadBytes, double 
     refinedSize =
       double(EncodePayload(engine.GetApproximation(), q0, engine.GetParameters().quantizationStep, true).size());
     afterFirstRun = workLeft({ { first, refinedSize } }, true); // the law's final count, not the first
-    if (checked && abandonsRefined())
+    if (checked ? abandonsRefined() : abandonsRefinedByBound())
       return abandon();
   }
   // Approximate() has only its schedule left to report (the refinement is done).
@@ -219,6 +223,10 @@ ApproximateToBudget(RefinementEngine & engine, std::size_t payloadBytes, double 
         ask();
         if (abandonsRefined())
           throw Abandoned{};
+      }
+      else if (!checked && abandonsRefinedByBound())
+      {
+        throw Abandoned{};
       }
     });
   }

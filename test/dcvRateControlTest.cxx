@@ -22,6 +22,7 @@
 #include <gtest/gtest.h>
 
 #include <cmath>
+#include <limits>
 #include <memory>
 #include <stdexcept>
 
@@ -167,6 +168,69 @@ TEST(RateControl, ACompetitorNotReadyIsNotWaitedForAndDecidesTheSame)
     {
       EXPECT_EQ(e.engine->GetSquaredError(), final);
     }
+  }
+}
+
+TEST(RateControl, ACompetitorsBoundAbandonsBeforeItIsReadyAsItWould)
+{
+  // The bound (the most the competitor's error will be: its best so far while it is made) abandons the
+  // points where the competitor would (0.2 of the points' final error, as in the test above), without
+  // waiting for it: right after the refinement when the bound is known by then, inside the schedule
+  // when it comes later. A bound that does not abandon leaves the run as it is without one.
+  const GridSize grid{ 48, 44, 40 };
+  double         final = 0.0;
+  {
+    PhantomEngine e(grid);
+    ASSERT_FALSE(ApproximateToBudget(*e.engine, 3000, 0.0, RateControl::StepMultiples()).abandoned);
+    final = e.engine->GetSquaredError();
+  }
+  const double unknown = std::numeric_limits<double>::infinity();
+  for (const int knownAfter : { 0, 3 }) // polls of the competitor before the bound is known
+  {
+    PhantomEngine      e(grid);
+    int                polls = 0;
+    bool               asked = false;
+    const BudgetResult r = ApproximateToBudget(
+      *e.engine,
+      3000,
+      0.0,
+      RateControl::StepMultiples(),
+      {},
+      [&] {
+        asked = true;
+        return 0.2 * final;
+      },
+      [&] {
+        ++polls;
+        return false; // not ready during the schedule
+      },
+      [&] { return polls >= knownAfter ? 0.2 * final : unknown; });
+    EXPECT_TRUE(r.abandoned) << "known after " << knownAfter << " polls";
+    EXPECT_TRUE(r.payload.empty());
+    EXPECT_FALSE(asked) << "abandoned by the bound: the competitor is not asked for";
+    if (knownAfter == 0)
+    {
+      EXPECT_EQ(e.engine->GetNumberOfPoints(), r.firstCount) << "abandoned before the schedule";
+    }
+    else
+    {
+      EXPECT_GE(polls, knownAfter);
+      EXPECT_NE(e.engine->GetNumberOfPoints(), r.firstCount) << "stopped inside the schedule, not after it";
+    }
+  }
+  {
+    PhantomEngine      e(grid);
+    const BudgetResult r = ApproximateToBudget(
+      *e.engine,
+      3000,
+      0.0,
+      RateControl::StepMultiples(),
+      {},
+      [&] { return final; },
+      [] { return false; },
+      [&] { return final; });
+    EXPECT_FALSE(r.abandoned);
+    EXPECT_EQ(e.engine->GetSquaredError(), final);
   }
 }
 
