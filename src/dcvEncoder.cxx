@@ -529,11 +529,11 @@ Run(const EncoderInput & input, const EncoderOptions & o, bool coded, std::vecto
   bool             pointsAbandoned = false;
   // The corners' layer is coded on a thread of its own while the points' first refinement and schedule
   // run (mostly on one thread); rate control asks for it once it is done. Neither depends on the other,
-  // so the file is the same as if they ran one after the other. With more than one thread its thread
-  // gives way to the points' (the wall time's path) and takes what their parallel parts leave: norm-256
-  // at 0.03125 bpv 3% faster, the 5 mm CT series at 0.125 bpv 10% (docs/profile.md, second session of
-  // 12-05). With one (dcv batch --jobs 0 on every core) the points have no parallel part to feed, and a
-  // corners' layer given way would be asked for only after their whole schedule.
+  // so the file is the same as if they ran one after the other. Its thread keeps the process's priority:
+  // at nice 19, giving way to the points' parallel parts (norm-256 at 0.03125 bpv 8% faster on an idle
+  // machine), it starved beside other busy processes of the same session, and rate control waited for it:
+  // the 5 mm CT series at 0.125 bpv 203 s instead of 8 s beside two busy loops (docs/profile.md, fourth
+  // session of 12-06).
   // The corners' best error so far, for rate control's check before the layer is done (declared before
   // the future, whose destructor waits for the thread that writes it).
   std::atomic<double>           cornersBound{ std::numeric_limits<double>::infinity() };
@@ -541,8 +541,6 @@ Run(const EncoderInput & input, const EncoderOptions & o, bool coded, std::vecto
   if (layers)
   {
     cornersLater = std::async(std::launch::async, [&, header = r.header, threads = CurrentThreads()] {
-      if (threads > 1)
-        GiveWayToOtherThreads(); // a thread of its own: std::launch::async
       return WithThreads(threads, [&] {
         const auto       start = std::chrono::steady_clock::now();
         CornersCandidate c = TryCorners(

@@ -33,12 +33,6 @@
 #include <utility>
 #include <vector>
 
-#if defined(__linux__)
-#  include <sys/resource.h>
-#  include <sys/syscall.h>
-#  include <unistd.h>
-#endif
-
 namespace dcv
 {
 
@@ -162,20 +156,6 @@ WithThreads(unsigned int threads, F && f)
     allowed.emplace(tbb::global_control::max_allowed_parallelism, std::size_t(threads));
   tbb::task_arena arena(threads == 0 ? tbb::task_arena::automatic : int(threads));
   return arena.execute(f);
-}
-
-/** Makes the calling thread (and the threads it starts from now on) give way to the process's other
- * threads: on Linux the lowest priority (nice 19) for that thread alone; elsewhere nothing. For work that
- * runs beside the work the result waits for, and is asked for later (the encoder's corners' layer): the
- * cores go first to the waited-for work's parallel parts, and whatever they leave idle to it. */
-inline void
-GiveWayToOtherThreads()
-{
-#if defined(__linux__)
-  // PRIO_PROCESS with a thread id sets that thread's nice value only (Linux threads are tasks). A failure
-  // (a sandbox forbidding it) leaves the priority as it was: the result is the same either way.
-  (void)setpriority(PRIO_PROCESS, id_t(syscall(SYS_gettid)), 19);
-#endif
 }
 
 } // namespace dcv
