@@ -22,6 +22,7 @@
 #include "dcvTestUtilities.h"
 #include "itkDCVEncoder.h"
 
+#include <algorithm>
 #include <filesystem>
 #include <fstream>
 #include <sstream>
@@ -45,14 +46,14 @@ HighestThreadNice()
     const std::string stat((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
     const auto        end = stat.rfind(')'); // after the command's name, which may hold spaces
     if (end == std::string::npos)
-      continue; // the thread ended meanwhile
-    std::istringstream fields(stat.substr(end + 1));
+      continue;                                      // the thread ended meanwhile
+    std::istringstream fields(stat.substr(end + 1)); // from field 3 (the state) on
     std::string        field;
-    for (int i = 3; i <= 19 && (fields >> field); ++i)
-    {
-      if (i == 19)
-        highest = std::max(highest, std::stoi(field));
-    }
+    for (int i = 3; i < 19; ++i)
+      fields >> field;
+    int nice = 0;
+    if (fields >> nice)
+      highest = std::max(highest, nice);
   }
   return highest;
 }
