@@ -18,9 +18,12 @@ target_link_libraries(DelaunayCompression ${_dcv_private} CGAL::CGAL Eigen3::Eig
 # CGAL's concurrent triangulation (the decoder's, dcvTetrahedralize.cxx) is compiled with TBB; defined for
 # every source, so that CGAL's classes are the same in each.
 target_compile_definitions(DelaunayCompression PRIVATE CGAL_LINKED_WITH_TBB)
+# The library's private headers, by concern (src/CMakeLists.txt).
+target_include_directories(DelaunayCompression PRIVATE
+  ${PROJECT_SOURCE_DIR}/src/core ${PROJECT_SOURCE_DIR}/src/mesh ${PROJECT_SOURCE_DIR}/src/layer)
 
 # The .dcv image and mesh IO as an ITK plugin: a directory holding it, in ITK_AUTOLOAD_PATH, lets any
 # ITK program read and write .dcv files without linking the module.
-add_library(DelaunayCompressionPlugin MODULE ${PROJECT_SOURCE_DIR}/src/itkDCVPlugin.cxx)
+add_library(DelaunayCompressionPlugin MODULE ${PROJECT_SOURCE_DIR}/src/itk/itkDCVPlugin.cxx)
 target_link_libraries(DelaunayCompressionPlugin ${_dcv_private} DelaunayCompression)
 set_target_properties(DelaunayCompressionPlugin PROPERTIES LIBRARY_OUTPUT_DIRECTORY ${PROJECT_BINARY_DIR}/plugin)

@@ -16,7 +16,7 @@
  *
  *=========================================================================*/
 // The ITK side of the IO fuzz target (fuzz/dcvIOFuzzer.cxx): Debian's ITK 5.2 headers refuse clang, so
-// this file and src/itkDCV{Image,Mesh}IO.cxx are compiled by g++ (with ASan and UBSan) and linked into the
+// this file and src/itk/itkDCV{Image,Mesh}IO.cxx are compiled by g++ (with ASan and UBSan) and linked into the
 // clang-built libFuzzer driver, which holds the coverage-instrumented ITK-free core. One C function: the
 // input is written to a .dcv file and read as every ITK caller reads one, through DCVImageIO (CanReadFile,
 // ReadImageInformation, Read into a buffer of the size it reports) and DCVMeshIO (CanReadFile,

@@ -18,7 +18,7 @@
 // libFuzzer target of the ITK entry points: DCVImageIO and DCVMeshIO CanReadFile / ReadImageInformation
 // (ReadMeshInformation) / Read (ReadPoints, ReadCells, ReadPointData) on each input written to a .dcv file.
 // This driver and the ITK-free core are built by clang (coverage, ASan, UBSan); the ITK side is
-// fuzz/dcvIOFuzzShim.cxx with src/itkDCV*IO.cxx, built by g++ (Debian's ITK 5.2 headers refuse clang).
+// fuzz/dcvIOFuzzShim.cxx with src/itk/itkDCV*IO.cxx, built by g++ (Debian's ITK 5.2 headers refuse clang).
 // scripts/fuzz.sh builds it twice: as is (target io) and with DCV_FUZZ_FIX_CRC (io-crc), which rewrites
 // the CRC-32 so that the payload decoder is reached.
 #include "dcvFuzzCrc.h"

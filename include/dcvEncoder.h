@@ -95,7 +95,7 @@ CheckOptions(const EncoderOptions & options, const EncoderInput & input);
  * per-voxel state and, with a bit budget and the residual layer, the layer's trial buffers; per point the
  * tetrahedralization, the least squares and the heaps. The peaks of the 40 dev runs, of float32, float64
  * and int16 copies of norm-256 and of `--points` runs were 0.38 to 0.82 of it from 2 million voxels on
- * (below, the libraries' 20 MiB dominate; docs/profile.md, seventh session of 12-05), where the model
+ * (below, the libraries' 20 MiB dominate; docs/profile.md), where the model
  * before (24 and 48 bytes a voxel, 4 KiB a point) was 2.3 to 5.2 times the peak and refused jobs that fit. */
 constexpr double EncodingBytesPerVoxel = 16.0;
 constexpr double EncodingBytesPerVoxelWithResidualLayer = 24.0;

@@ -80,7 +80,7 @@ constexpr double AbandonAfterFirstRun = 1.2;
  * 4.3% of the final one on every dev run that went on (the second fit and the points' own residual
  * layer gained at most that: ct-avm at 0.125 bpv, 0.4446 -> 0.4265 of the competitor's error; they lost
  * up to 2.4% as well), and every run that stood above this ratio there ended with the competitor
- * (docs/profile.md, session of 12-04 evening: norm-256 at 0.03125 to 0.125 bpv, head-mr, flair-mr, ...).
+ * (docs/profile.md: norm-256 at 0.03125 to 0.125 bpv, head-mr, flair-mr, ...).
  * What it spares is the second fit and the points' layer trial: norm-256 at 0.03125 bpv 1.5 s of 8.4. */
 constexpr double AbandonAfterSteps = 1.06;
 /** The steps tried, as multiples of DefaultQuantizationStep (measured at 0.03125 to 0.25 bpv on
@@ -93,7 +93,7 @@ StepMultiples()
 }
 /** FittedCount from one state: the bits a point fall this many times as fast with the count as they do
  * over an arbitrary subset of the voxels (log2(voxels / count) + c), as measured between the first run
- * and the fitted count on the 40 dev runs (docs/profile.md, fifth session of 12-05): median 1.55, 1.07 to
+ * and the fitted count on the 40 dev runs (docs/profile.md): median 1.55, 1.07 to
  * 2.25 over the 12 runs whose count moved by more than 10%. */
 constexpr double SubsetLawFactor = 1.55;
 /** Quality target: the count is accepted when within this share of the smallest count that reaches it. */
@@ -110,7 +110,7 @@ constexpr unsigned MaximumQualitySteps = 40;
  * bits per point)). beta is kept in [0.5, 1.5]. Rate control uses it to
  * estimate the work left for its progress; its fit keeps the bits-per-point correction (beta 1), since
  * fits by this law, quicker on norm-256 at 0.25 bpv (beta near 0.65 there), gave other meshes and
- * 0.004 to 0.07 dB less on 4 to 7 of the 40 dev runs (docs/profile.md, session of 12-05). */
+ * 0.004 to 0.07 dB less on 4 to 7 of the 40 dev runs (docs/profile.md). */
 DelaunayCompression_EXPORT double
 FittedCount(const std::vector<std::pair<double, double>> & states, double voxels, double target);
 

@@ -31,7 +31,7 @@ namespace itk
  *
  * I* of the combined image approach is ITK's bilateral filter of the volume. ITK's filter walks each
  * voxel's neighbourhood through a boundary-checking iterator and measures the range of its whole input
- * on every update; on the 5 mm CT series it was the largest stage of the encoder (issue 13). This
+ * on every update; on the 5 mm CT series it was the largest stage of the encoder. This
  * subclass keeps every parameter, the domain kernel (ITK's GaussianImageSource, as ITK builds it), the
  * range Gaussian's table and the order of the sums, and reads the neighbours by precomputed offsets,
  * clamping only near the border (ITK's zero-flux Neumann condition). Test: DCVBilateralImageFilter.*

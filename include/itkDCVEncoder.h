@@ -184,7 +184,7 @@ DCVApproximate(const TImage * image, const dcv::EncoderOptions & options)
                                                                                const dcv::EncoderOptions &)
 
 // The encoder's ITK pipeline (the bilateral filter of I* above all) for the .dcv pixel types is compiled
-// once, in the library (src/itkDCVEncoderIntegers.cxx, src/itkDCVEncoderReals.cxx), instead of again in
+// once, in the library (src/itk/itkDCVEncoderIntegers.cxx, src/itk/itkDCVEncoderReals.cxx), instead of again in
 // every program and test that encodes.
 DCV_ENCODER_INSTANTIATION(extern, uint8_t);
 DCV_ENCODER_INSTANTIATION(extern, int8_t);

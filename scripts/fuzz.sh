@@ -5,7 +5,7 @@
 # that mutations reach the payload decoder), io and io-crc (the same two for the ITK entry points:
 # DCVImageIO and DCVMeshIO CanReadFile / ReadImageInformation / Read on each input written to a file).
 # Builds the ITK-free core with clang in build-fuzz/ (Debian's ITK 5.2 headers refuse clang) and the ITK
-# side of the io targets (src/itkDCV*IO.cxx, fuzz/dcvIOFuzzShim.cxx) with g++, seeds each target's corpus
+# side of the io targets (src/itk/itkDCV*IO.cxx, fuzz/dcvIOFuzzShim.cxx) with g++, seeds each target's corpus
 # (build-fuzz/corpus/TARGET, kept between runs) with fuzz/corpus/, and prints libFuzzer's final figures.
 # Inputs that crash, hang or exhaust memory are written to build-fuzz/findings/ and the exit status is 1;
 # each becomes a regression test (test/fuzz-findings/, the FuzzCorpus test). DCV_FUZZ_JOBS (default 1):
@@ -35,15 +35,16 @@ rm -f "$out/include/DelaunayCompressionExport.h.new"
 
 # -frounding-math as CGAL's CMake gives gcc: its interval arithmetic switches the rounding mode.
 flags=(-std=c++17 -O1 -g -fno-omit-frame-pointer -frounding-math -fsanitize=address,undefined -fno-sanitize-recover=undefined
-  -Iinclude -I"$out/include" -isystem /usr/include/eigen3 -DNDEBUG -DCGAL_LINKED_WITH_TBB)
-core=(dcvFileFormat dcvCodec dcvArithmeticCoder dcvPositionCoder dcvApproximation dcvTetrahedralization
-  dcvTetrahedralize dcvResidualLayer dcvInterSliceWavelet)
-# What src/itkDCV*IO.cxx need besides: the encoder (DCVImageIO writes too).
-encoder=(dcvEncoder dcvRateControl dcvRefinementEngine dcvPixelSource)
+  -Iinclude -Isrc/core -Isrc/mesh -Isrc/layer -I"$out/include" -isystem /usr/include/eigen3 -DNDEBUG -DCGAL_LINKED_WITH_TBB)
+core=(codec/dcvFileFormat codec/dcvCodec codec/dcvArithmeticCoder codec/dcvPositionCoder mesh/dcvApproximation
+  mesh/dcvTetrahedralization mesh/dcvTetrahedralize layer/dcvResidualLayer layer/dcvCompactLayer layer/dcvInterSliceWavelet)
+# What src/itk/itkDCV*IO.cxx need besides: the encoder (DCVImageIO writes too).
+encoder=(codec/dcvEncoder codec/dcvRateControl mesh/dcvRefinementEngine mesh/dcvDecimation mesh/dcvLeastSquares
+  core/dcvPixelSource)
 compile() { # SOURCE OBJECT COMPILER FLAGS...: when the source or a header is newer than the object
   local source=$1 object=$2
   shift 2
-  if [ ! -f "$object" ] || [ -n "$(find "$source" include src/*.h fuzz/*.h -newer "$object" -name '*.[hc]*' | head -1)" ]; then
+  if [ ! -f "$object" ] || [ -n "$(find "$source" include src/*/*.h fuzz/*.h -newer "$object" -name '*.[hc]*' | head -1)" ]; then
     echo "$1 $source"
     "$@" -c "$source" -o "$object"
   fi
@@ -60,22 +61,22 @@ compile_later() { # as compile, in the background
 }
 objects=()
 for s in "${core[@]}"; do
-  compile_later "src/$s.cxx" "$out/obj/$s.o" clang++ "${flags[@]}" -fsanitize=fuzzer-no-link
-  objects+=("$out/obj/$s.o")
+  compile_later "src/$s.cxx" "$out/obj/$(basename "$s").o" clang++ "${flags[@]}" -fsanitize=fuzzer-no-link
+  objects+=("$out/obj/$(basename "$s").o")
 done
 encoder_objects=()
 for s in "${encoder[@]}"; do
-  compile_later "src/$s.cxx" "$out/obj/$s.o" clang++ "${flags[@]}" -fsanitize=fuzzer-no-link
-  encoder_objects+=("$out/obj/$s.o")
+  compile_later "src/$s.cxx" "$out/obj/$(basename "$s").o" clang++ "${flags[@]}" -fsanitize=fuzzer-no-link
+  encoder_objects+=("$out/obj/$(basename "$s").o")
 done
 # The ITK side, by g++ with ASan and UBSan (its instrumentation calls the ASan and UBSan runtime that clang
 # links into the fuzzer; libFuzzer's coverage comes from the clang-built core), at -O0: it is glue around
 # the core and ITK's own libraries, and compiles twice as fast (itkDCVEncoderIntegers.cxx: 36 s, 79 at -O1).
 itk_flags=(-std=c++17 -O0 -g -fno-omit-frame-pointer -fsanitize=address,undefined -fno-sanitize-recover=undefined
-  -Iinclude -I"$out/include" -Ifuzz -isystem /usr/include/ITK-5.2 -isystem /usr/include/eigen3 -DNDEBUG)
+  -Iinclude -Isrc/core -Isrc/mesh -Isrc/layer -I"$out/include" -Ifuzz -isystem /usr/include/ITK-5.2 -isystem /usr/include/eigen3 -DNDEBUG)
 itk_objects=()
 # itkDCVEncoder*.cxx: the encoder DCVImageIO::Write calls (itkDCVEncoder.h declares it extern).
-for s in src/itkDCVImageIO.cxx src/itkDCVMeshIO.cxx src/itkDCVEncoderIntegers.cxx src/itkDCVEncoderReals.cxx \
+for s in src/itk/itkDCVImageIO.cxx src/itk/itkDCVMeshIO.cxx src/itk/itkDCVEncoderIntegers.cxx src/itk/itkDCVEncoderReals.cxx \
   fuzz/dcvIOFuzzShim.cxx; do
   o="$out/obj/$(basename "$s" .cxx).gcc.o"
   compile_later "$s" "$o" g++ "${itk_flags[@]}"

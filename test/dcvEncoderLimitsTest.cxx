@@ -15,7 +15,7 @@
  *  limitations under the License.
  *
  *=========================================================================*/
-// The encoder's resource limit (issue 15, item 2; the memory model of issue 13): what a job may need is
+// The encoder's resource limit and its memory model: what a job may need is
 // estimated from the grid and the options, and a job above MaximumMemory (--max-memory) is refused before
 // the volume is copied, naming what it would need and the limit.
 #include "dcvEncoder.h"

@@ -15,10 +15,10 @@
  *  limitations under the License.
  *
  *=========================================================================*/
-// The encoder's threads keep the process's priority (issue 13: the encoder fits beside other work). The
+// The encoder's threads keep the process's priority (the encoder fits beside other work). The
 // corners' layer's thread once lowered its own (nice 19) to give way to the points' parallel parts; beside
-// other busy processes of the same session it then starved while rate control waited for it (the 5 mm CT
-// series at 0.125 bpv 203 s instead of 8 s beside two busy loops: docs/profile.md, fourth session of 12-06).
+// other busy processes of the same login it then starved while rate control waited for it (the 5 mm CT
+// series at 0.125 bpv 203 s instead of 8 s beside two busy loops: docs/profile.md).
 #include "dcvTestUtilities.h"
 #include "itkDCVEncoder.h"
 

@@ -15,7 +15,7 @@
  *  limitations under the License.
  *
  *=========================================================================*/
-// src/dcvGridKernel.h: its integer predicates against Epick's exact ones, sign for sign, on degenerate
+// src/mesh/dcvGridKernel.h: its integer predicates against Epick's exact ones, sign for sign, on degenerate
 // grids, on random points up to the coordinate limit and on cospherical points of the largest sphere
 // the limit holds; and triangulations made with it against Epick's, cell for cell, through insertions
 // and removals.

@@ -15,7 +15,7 @@
  *  limitations under the License.
  *
  *=========================================================================*/
-// Resource limits of the decoder (issue 15, item 2): what a header implies is checked before anything is
+// Resource limits of the decoder: what a header implies is checked before anything is
 // allocated from it, and a payload that runs out stops the decoding at once. The reproducers of the issue
 // are forged here with the project's own writer (SerializeFile computes the CRC-32).
 #include "dcvArithmeticCoder.h"

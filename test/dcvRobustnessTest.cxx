@@ -15,7 +15,7 @@
  *  limitations under the License.
  *
  *=========================================================================*/
-// What issue 15 found as a careless user and an attacker, items 4 and 5: no partial outputs (a full disk,
+// What a careless user and an attacker would find: no partial outputs (a full disk,
 // a race, the output given as the input, a signal), the exit status of each kind of error, and volumes
 // with bad numbers (NaN, infinities, constant, tiny, one slice), each refused clearly or coded correctly.
 #include "dcvTestUtilities.h"
@@ -352,7 +352,7 @@ TEST(BadNumbers, ConstantVolumesDecodeExactly)
   }
 }
 
-// Found here, left to the owner of ChooseLayers (src/dcvEncoder.cxx): a constant negative float volume
+// Found here, left to the owner of ChooseLayers (src/codec/dcvEncoder.cxx): a constant negative float volume
 // with the residual layer tried (--bpv without --no-residual-layer) is refused with the internal
 // "EncodePayload: value -0.125000 is not on the quantization lattice" (nothing is written). Enable
 // when fixed.

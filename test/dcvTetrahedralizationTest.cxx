@@ -427,7 +427,7 @@ TEST(Tetrahedralization, DuplicatePointsAreRefused)
 TEST(Tetrahedralization, PointsBeyondTheLargestGridAreRefusedBeforeAnyChange)
 {
   // The largest grid, 65535 voxels an axis at a scale of 16, is held (the integer predicates of
-  // src/dcvGridKernel.h are exact below 2^20 scaled); a point at 2^20 or beyond, or below 0, is refused
+  // src/mesh/dcvGridKernel.h are exact below 2^20 scaled); a point at 2^20 or beyond, or below 0, is refused
   // and leaves the mesh as it was.
   const GridSize     grid{ MaximumGridExtent, MaximumGridExtent, MaximumGridExtent };
   Tetrahedralization mesh;

@@ -16,7 +16,7 @@
  *
  *=========================================================================*/
 // Tetrahedralize, the decoder's tetrahedralization: from 20,000 points on several threads it is CGAL's
-// concurrent triangulation (src/dcvTetrahedralize.cxx). Its listing must not depend on the threads, and
+// concurrent triangulation (src/mesh/dcvTetrahedralize.cxx). Its listing must not depend on the threads, and
 // its cells must be the encoder's (Tetrahedralization, built point by point).
 #include "dcvParallel.h"
 #include "dcvTestUtilities.h"

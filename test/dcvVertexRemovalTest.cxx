@@ -15,7 +15,7 @@
  *  limitations under the License.
  *
  *=========================================================================*/
-// The decimation's vertex removal (src/dcvVertexRemoval.h) against CGAL's own: after every removal the
+// The decimation's vertex removal (src/mesh/dcvVertexRemoval.h) against CGAL's own: after every removal the
 // same cells with their vertices in the same order (what the least squares and the costs read), on
 // random points, on whole lattices (every cell cospherical with its neighbours) and on the hull.
 #include "dcvVertexRemoval.h"
@@ -51,7 +51,7 @@ struct CellInfo // as the engine's: an id, NoCell when made
     id = v;
   }
 };
-using Kernel = dcv::GridKernel; // the library's (src/dcvTetrahedralization.cxx)
+using Kernel = dcv::GridKernel; // the library's (src/mesh/dcvTetrahedralization.cxx)
 using VertexBase = CGAL::Triangulation_vertex_base_with_info_3<uint32_t, Kernel>;
 using CellBase =
   CGAL::Triangulation_cell_base_with_info_3<CellInfo, Kernel, CGAL::Delaunay_triangulation_cell_base_3<Kernel>>;

@@ -55,7 +55,7 @@ using DelaunayOf = CGAL::Delaunay_triangulation_3<
 
 /** Below this many points one thread builds the triangulation: CGAL's concurrent one costs a quarter
  * more on one thread (its containers and locks), which two threads repaid from 10,000 to 30,000 points
- * (docs/profile.md, session of 12-06). */
+ * (docs/profile.md). */
 constexpr std::size_t ConcurrentFrom = 20000;
 
 /** The concurrent triangulation's lock grid has about this many points a cell (CGAL locks the grid

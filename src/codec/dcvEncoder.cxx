@@ -531,9 +531,8 @@ Run(const EncoderInput & input, const EncoderOptions & o, bool coded, std::vecto
   // run (mostly on one thread); rate control asks for it once it is done. Neither depends on the other,
   // so the file is the same as if they ran one after the other. Its thread keeps the process's priority:
   // at nice 19, giving way to the points' parallel parts (norm-256 at 0.03125 bpv 8% faster on an idle
-  // machine), it starved beside other busy processes of the same session, and rate control waited for it:
-  // the 5 mm CT series at 0.125 bpv 203 s instead of 8 s beside two busy loops (docs/profile.md, fourth
-  // session of 12-06).
+  // machine), it starved beside other busy processes of the same login, and rate control waited for it:
+  // the 5 mm CT series at 0.125 bpv 203 s instead of 8 s beside two busy loops (docs/profile.md).
   // The corners' best error so far, for rate control's check before the layer is done (declared before
   // the future, whose destructor waits for the thread that writes it).
   std::atomic<double>           cornersBound{ std::numeric_limits<double>::infinity() };
