@@ -8,7 +8,7 @@
 # side of the io targets (src/itk/itkDCV*IO.cxx, fuzz/dcvIOFuzzShim.cxx) with g++, seeds each target's corpus
 # (build-fuzz/corpus/TARGET, kept between runs) with fuzz/corpus/, and prints libFuzzer's final figures.
 # Inputs that crash, hang or exhaust memory are written to build-fuzz/findings/ and the exit status is 1;
-# each becomes a regression test (test/fuzz-findings/, the FuzzCorpus test). DCV_FUZZ_JOBS (default 1):
+# each, once fixed, joins fuzz/corpus/, which the FuzzCorpus test decodes. DCV_FUZZ_JOBS (default 1):
 # targets fuzzed at once (the build runs $(nproc) compilations at a time).
 set -euo pipefail
 cd "$(dirname "$0")/.."
