@@ -1,6 +1,6 @@
 #!/usr/bin/python3
 """Encoding and decoding speed of dcv against its peers on the same volume and byte budget, side by side
-in one run: the figures of the speed targets (docs/profile.md).
+in one run: the figures of docs/benchmarks.md.
 
 Usage: /usr/bin/python3 scripts/speed_benchmark.py [--volume norm-256.nrrd] [--bpv 0.03125 0.25]
                                                    [--runs 3] [--work DIR]

@@ -29,7 +29,7 @@ namespace dcv
 /** Gives the pages of freed memory back to the system, after a stage that freed volume-sized buffers.
  * glibc keeps them in its arenas (one per thread that allocated: OpenJPEG's, TBB's, the corners'
  * thread), where the next stage, often on another thread, cannot reuse them: the 5 mm CT series at
- * 0.125 bpv peaked at 358 MB with them kept (docs/profile.md). A no-op elsewhere. */
+ * 0.125 bpv peaked at 265 MiB with them kept (docs/profile.md, "Memory"). A no-op elsewhere. */
 inline void
 ReturnFreedMemory()
 {

@@ -67,7 +67,7 @@ ParametersForMode(Mode mode)
   // Best does not use I*: with least-squares values and the residual layer it paid on none of the 40 dev
   // runs (../shared/data, 0.03125 to 0.25 bpv: 35 files the same, 5 better by 0.08 to 0.98 dB, the CT
   // volumes ct-avm-4mm and headsq-ct from 0.0625 bpv on), and points alone it gained at most 0.08 dB
-  // (flair-mr, head-mr at low rates) where it lost up to 1.03 dB (docs/profile.md):
+  // (flair-mr, head-mr at low rates) where it lost up to 1.03 dB (docs/method.md):
   // each vertex's value, the better of I(p) and I*(p) over its new cells, is a greedy choice the
   // least squares then undo. It also spares the bilateral filter (the 5 mm CT series: 0.76 s).
   // The greedy local optimum of each new vertex's value was measured to hurt (head-mr, 3000 points:
