@@ -18,11 +18,16 @@
 // dcv on the command line: the demo path, and a clear error with a non-zero exit for each bad input.
 #include "dcvTestUtilities.h"
 
+#include "itkConfigure.h"
 #include "itkImageFileWriter.h"
 #include "itkVectorImage.h"
 
+#include <CGAL/version_macros.h>
+#include <dcmtk/dcmdata/dcuid.h>
+
 #include <cmath>
 #include <fstream>
+#include <regex>
 #include <thread>
 #include <tuple>
 
@@ -369,6 +374,21 @@ TEST_F(CommandLine, UsageErrorsExitWithStatusTwo)
   EXPECT_EQ(RunDcv("compress").status, 2);
   EXPECT_EQ(RunDcv("compress a.nrrd b.dcv --bogus").status, 2);
   EXPECT_EQ(RunDcv("frobnicate").status, 2);
+}
+
+TEST_F(CommandLine, VersionNamesTheModuleAndTheLibrariesItWasBuiltWith)
+{
+  const Result r = RunDcv("--version");
+  ASSERT_EQ(r.status, 0) << r.output;
+  // The module's version as CMake's project() sets it (DCV_PROJECT_VERSION, test/CMakeLists.txt).
+  EXPECT_EQ(r.output.rfind(std::string("dcv ") + DCV_PROJECT_VERSION + "\n", 0), 0u) << r.output;
+  const std::string itk = "ITK " + std::to_string(ITK_VERSION_MAJOR) + "." + std::to_string(ITK_VERSION_MINOR) + "." +
+                          std::to_string(ITK_VERSION_PATCH);
+  // The libraries on one line: ITK, CGAL and DCMTK as this test was compiled against them, OpenJPEG (as
+  // loaded at run time) with a version of three numbers.
+  const std::regex libraries("\n" + itk + ", CGAL " + CGAL_VERSION_STR + ", OpenJPEG [0-9]+\\.[0-9]+\\.[0-9]+, DCMTK " +
+                             OFFIS_DCMTK_VERSION_STRING + "\n?$");
+  EXPECT_TRUE(std::regex_search(r.output, libraries)) << r.output;
 }
 
 TEST_F(CommandLine, OneTargetAtATime)

@@ -287,13 +287,14 @@ TEST(SlicerModule, EveryParameterHasALabelADescriptionAndADefault)
         EXPECT_NE(body.find("<default>"), std::string::npos);
     }
     EXPECT_GE(count, 4);
-    for (const char * header : { "<category>",
-                                 "<title>",
-                                 "<description>",
-                                 "<version>0.1.0</version>",
-                                 "<documentation-url>http",
-                                 "<license>",
-                                 "<contributor>" })
+    // The version is CMake's project version (DCV_PROJECT_VERSION, test/CMakeLists.txt).
+    for (const std::string header : { std::string("<category>"),
+                                      std::string("<title>"),
+                                      std::string("<description>"),
+                                      "<version>" + std::string(DCV_PROJECT_VERSION) + "</version>",
+                                      std::string("<documentation-url>http"),
+                                      std::string("<license>"),
+                                      std::string("<contributor>") })
       EXPECT_NE(xml.find(header), std::string::npos) << header;
   }
 }
