@@ -45,6 +45,7 @@ struct Parameter
   std::string description;
   std::string flag;     // without the dash; empty when none
   std::string longflag; // without the dashes; empty when none
+  std::vector<std::string> longflagAliases; // the longflag's alias and deprecatedalias attributes, as Slicer reads them
   std::string defaultValue;
   std::string channel; // input, output, or empty
   int         index{ -1 };
@@ -157,7 +158,7 @@ private:
 };
 
 /** The encoder's options from the parameters DCVCompress and DCVApproximate share (bpv, psnr, mode,
- * no-residual-layer, step, domain-sigma, range-sigma, alpha, scale): a PSNR above 0 replaces the bit
+ * noResidualLayer, step, domainSigma, rangeSigma, alpha, scale): a PSNR above 0 replaces the bit
  * rate; every value checked as the library checks it (dcv::tools::Failure naming the option). */
 EncoderOptions
 EncoderOptionsFrom(const Arguments & arguments);
