@@ -266,9 +266,9 @@ class CommandLineBudget
   , public ::testing::WithParamInterface<const char *>
 {};
 
-const char * const DevVolumes[] = { "avg152t1.nrrd",   "ct-avm-4mm.nrrd", "ct-avm.nrrd",    "flair-mr.nrrd",
-                                    "head-mr.nrrd",    "headsq-ct.nrrd",  "ironprot.nrrd",  "neghip.nrrd",
-                                    "norm-256.nrrd",   "dicom-ct-brain-5mm" };
+const char * const DevVolumes[] = { "avg152t1.nrrd", "ct-avm-4mm.nrrd",   "ct-avm.nrrd",   "flair-mr.nrrd",
+                                    "head-mr.nrrd",  "headsq-ct.nrrd",    "ironprot.nrrd", "neghip.nrrd",
+                                    "norm-256.nrrd", "dicom-ct-brain-5mm" };
 
 TEST_P(CommandLineBudget, TheFileFillsTheBudgetAtAThirtySecondOfABitPerVoxel)
 {

@@ -45,11 +45,12 @@ struct Parameter
   std::string description;
   std::string flag;     // without the dash; empty when none
   std::string longflag; // without the dashes; empty when none
-  std::vector<std::string> longflagAliases; // the longflag's alias and deprecatedalias attributes, as Slicer reads them
   std::string defaultValue;
   std::string channel; // input, output, or empty
   int         index{ -1 };
   bool        hasDefault{ false };
+  /** The longflag's alias and deprecatedalias attributes (without dashes): other spellings it accepts. */
+  std::vector<std::string> longflagAliases;
 
   /** A value the module gives back through the return parameter file: an output with neither
    * index nor flag (Slicer passes nothing for it). */
