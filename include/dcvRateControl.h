@@ -42,13 +42,6 @@ namespace RateControl
 {
 /** A budget is met when the payload fills at least this share of it (and never more than all of it). */
 constexpr double MinimumFill = 0.97;
-/** The residual layer's JPEG 2000 codestream grows in steps (the passes of its code-blocks that OpenJPEG's
- * rate allocation adds at one threshold), few and large when the image is small: on head-mr (48x62x42)
- * 35 bytes at a 408-byte layer, 49 at 701, 63 at 896 and 100 at 1,169, none of them between. No target
- * lands inside a step, so a file whose layer takes the budget can fall short of it by up to a step: the
- * whole file is promised MinimumFileBytes(), MinimumFill of the budget or this many bytes less than it,
- * whichever is smaller (measured at most 47 bytes short, head-mr at 0.08 bpv). */
-constexpr std::size_t LayerStepBytes = 128;
 /** Point-count corrections aim midway in [MinimumFill, 1], so that the size law's noise rarely leaves
  * the band. */
 constexpr double TargetFill = 0.985;
@@ -109,16 +102,14 @@ constexpr double QualityCountTolerance = 0.01;
 constexpr unsigned MaximumQualitySteps = 40;
 } // namespace RateControl
 
-/** The smallest whole .dcv file a bit budget of `budgetBytes` promises (a file never exceeds the budget):
- * RateControl::MinimumFill of it, or RateControl::LayerStepBytes less than it where that is smaller
- * (budgets under 4,267 bytes, where the residual layer's steps are more than 3% of the budget: at least
- * 360 of 488 bytes, 73.8%). Unless the approximation becomes exact first. */
+/** The smallest whole .dcv file a bit budget of `budgetBytes` promises, RateControl::MinimumFill of it (a
+ * file never exceeds the budget), unless the approximation becomes exact first. The points' payload is
+ * fitted to it (ApproximateToBudget); a residual layer that takes the budget is filled to it
+ * (ResidualSearch::Fill), past the steps in which its codestream grows at a few hundred bytes. */
 inline std::size_t
 MinimumFileBytes(std::size_t budgetBytes)
 {
-  const auto fill = std::size_t(std::ceil(RateControl::MinimumFill * double(budgetBytes)));
-  const auto step = budgetBytes > RateControl::LayerStepBytes ? budgetBytes - RateControl::LayerStepBytes : 0;
-  return std::min(fill, step);
+  return std::size_t(std::ceil(RateControl::MinimumFill * double(budgetBytes)));
 }
 
 /** The point count whose payload the size law puts at `target` bytes, from the (count, size) states of
