@@ -43,16 +43,17 @@ if(DelaunayCompression_BUILD_BENCHMARKS)
 endif()
 
 # A CMake package, so that other projects can find_package(DelaunayCompression).
-install(DIRECTORY include/ DESTINATION ${CMAKE_INSTALL_INCLUDEDIR}/DelaunayCompression)
-install(FILES ${PROJECT_BINARY_DIR}/include/DelaunayCompressionExport.h
+install(DIRECTORY include/ DESTINATION ${CMAKE_INSTALL_INCLUDEDIR}/DelaunayCompression PATTERN "*.in" EXCLUDE)
+install(FILES ${PROJECT_BINARY_DIR}/include/DelaunayCompressionExport.h ${PROJECT_BINARY_DIR}/include/dcvVersion.h
         DESTINATION ${CMAKE_INSTALL_INCLUDEDIR}/DelaunayCompression)
 install(EXPORT DelaunayCompressionTargets NAMESPACE DelaunayCompression::
         DESTINATION ${CMAKE_INSTALL_LIBDIR}/cmake/DelaunayCompression)
 configure_package_config_file(cmake/DelaunayCompressionConfig.cmake.in
   ${PROJECT_BINARY_DIR}/DelaunayCompressionConfig.cmake
   INSTALL_DESTINATION ${CMAKE_INSTALL_LIBDIR}/cmake/DelaunayCompression)
+# find_package(DelaunayCompression 0.2) accepts any 0.2.x: before 1.0 a minor version may change the API.
 write_basic_package_version_file(${PROJECT_BINARY_DIR}/DelaunayCompressionConfigVersion.cmake
-  COMPATIBILITY SameMinorVersion)
+  VERSION ${PROJECT_VERSION} COMPATIBILITY SameMinorVersion)
 install(FILES ${PROJECT_BINARY_DIR}/DelaunayCompressionConfig.cmake
               ${PROJECT_BINARY_DIR}/DelaunayCompressionConfigVersion.cmake
         DESTINATION ${CMAKE_INSTALL_LIBDIR}/cmake/DelaunayCompression)

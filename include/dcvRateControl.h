@@ -102,6 +102,16 @@ constexpr double QualityCountTolerance = 0.01;
 constexpr unsigned MaximumQualitySteps = 40;
 } // namespace RateControl
 
+/** The smallest whole .dcv file a bit budget of `budgetBytes` promises, RateControl::MinimumFill of it (a
+ * file never exceeds the budget), unless the approximation becomes exact first. The points' payload is
+ * fitted to it (ApproximateToBudget); a residual layer that takes the budget is filled to it
+ * (ResidualSearch::Fill), past the steps in which its codestream grows at a few hundred bytes. */
+inline std::size_t
+MinimumFileBytes(std::size_t budgetBytes)
+{
+  return std::size_t(std::ceil(RateControl::MinimumFill * double(budgetBytes)));
+}
+
 /** The point count whose payload the size law puts at `target` bytes, from the (count, size) states of
  * one fit (the last is the current one; all with one quantization step): between the last two states
  * of different counts, size ~ count^beta with beta measured there; from one state, beta = 1 -

@@ -204,12 +204,15 @@ Files(const std::string & directory)
   return names;
 }
 
-/** Removes the <channel> of each returned scalar (an output with neither flag nor index). Slicer's parser
- * reads a channel on any parameter, and Slicer writes such outputs back from the return parameter file,
- * but ModuleDescription.xsd (SlicerExecutionModel's too) declares <channel> only for indexed parameters.
- * Throws when a <channel> is left on a scalar that is not a returned value. */
+/** The description as each schema takes a returned value (a scalar output with neither flag nor index, which
+ * Slicer writes back from the return parameter file). Slicer's parser reads a <channel> on any parameter,
+ * but ModuleDescription.xsd (SlicerExecutionModel's too) declares <channel> only for indexed parameters:
+ * for `slicer` the channel is removed. CTK's schema needs a flag or an index on every parameter and marks a
+ * returned value with index 1000, which Slicer would take for a positional argument (ModuleParameter::
+ * IsReturnParameter): for CTK <index>1000</index> is added after the name. Nothing else is changed.
+ * Throws when a <channel> is on a scalar that is not a returned value. */
 std::string
-WithoutReturnedChannels(const std::string & xml, int & removed)
+WithReturnedValuesFor(const std::string & xml, bool slicer, int & changed)
 {
   const std::regex scalar("<(integer|double|float)>([\\s\\S]*?)</\\1>");
   std::string      out;
@@ -220,11 +223,14 @@ WithoutReturnedChannels(const std::string & xml, int & removed)
     std::string         body = m[2];
     if (body.find("<channel>") != std::string::npos)
     {
-      if (body.find("<flag>") != std::string::npos || body.find("<longflag>") != std::string::npos ||
+      if (body.find("<flag>") != std::string::npos || body.find("<longflag") != std::string::npos ||
           body.find("<index>") != std::string::npos || body.find("<channel>output</channel>") == std::string::npos)
         throw std::runtime_error("a <channel> on a scalar that is not a returned value: " + m.str());
-      body = std::regex_replace(body, std::regex("[ \t]*<channel>output</channel>\n?"), "");
-      ++removed;
+      if (slicer)
+        body = std::regex_replace(body, std::regex("[ \t]*<channel>output</channel>\n?"), "");
+      else
+        body = std::regex_replace(body, std::regex("(</name>\n?)([ \t]*)"), "$1$2<index>1000</index>\n$2");
+      ++changed;
     }
     out.append(last, m[0].first);
     out += "<" + m[1].str() + ">" + body + "</" + m[1].str() + ">";
@@ -242,27 +248,38 @@ ModuleXML(const std::string & module)
   return r.output;
 }
 
-TEST(SlicerModule, DescriptionsValidateAgainstTheSlicerSchema)
+/** Each module's --xml output against Slicer's schema and CTK's: the element order of the two differs
+ * (CTK: name, flag, longflag or index, description, label, default, channel, constraints), and CTK allows
+ * only letters, digits and underscores in a longflag and no `reference` on an image. */
+TEST(SlicerModule, DescriptionsValidateAgainstTheSlicerAndTheCTKSchemas)
 {
   if (std::string(DCV_XMLLINT).empty() || !fs::exists(DCV_XMLLINT))
     GTEST_SKIP() << "needs xmllint (Debian package libxml2-utils; not found at configure time)";
-  if (!fs::exists(DCV_SLICER_SCHEMA))
-    GTEST_SKIP() << "needs the schema " << DCV_SLICER_SCHEMA << " (../shared/slicer is absent)";
+  for (const char * schema : { DCV_SLICER_SCHEMA, DCV_CTK_SCHEMA })
+  {
+    if (!fs::exists(schema))
+      GTEST_SKIP() << "needs the schema " << schema << " (../shared/slicer is absent)";
+  }
   TemporaryDirectory directory;
   for (const std::string & module : Modules())
   {
     SCOPED_TRACE(ModuleName(module));
     const std::string xml = ModuleXML(module);
-    int               removed = 0;
-    const std::string checked = WithoutReturnedChannels(xml, removed);
-    const std::string path = directory / (ModuleName(module) + ".xml");
-    std::ofstream(path) << checked;
-    const auto r =
-      RunCommand(Shell(DCV_XMLLINT) + " --noout --schema " + Shell(DCV_SLICER_SCHEMA) + " " + Shell(path) + " 2>&1");
-    EXPECT_EQ(r.status, 0) << r.output;
-    EXPECT_NE(r.output.find("validates"), std::string::npos) << r.output;
-    // Every returned value is such a scalar: 4 for Compress and Approximate, 2 for Decompress.
-    EXPECT_EQ(removed, ModuleName(module) == "DCVDecompress" ? 2 : 4);
+    for (const bool slicer : { true, false })
+    {
+      const std::string schema = slicer ? DCV_SLICER_SCHEMA : DCV_CTK_SCHEMA;
+      SCOPED_TRACE(schema);
+      int               changed = 0;
+      const std::string checked = WithReturnedValuesFor(xml, slicer, changed);
+      const std::string path = directory / (ModuleName(module) + (slicer ? "-slicer.xml" : "-ctk.xml"));
+      std::ofstream(path) << checked;
+      const auto r =
+        RunCommand(Shell(DCV_XMLLINT) + " --noout --schema " + Shell(schema) + " " + Shell(path) + " 2>&1");
+      EXPECT_EQ(r.status, 0) << r.output;
+      EXPECT_NE(r.output.find("validates"), std::string::npos) << r.output;
+      // Every returned value is such a scalar: 4 for Compress and Approximate, 2 for Decompress.
+      EXPECT_EQ(changed, ModuleName(module) == "DCVDecompress" ? 2 : 4);
+    }
   }
 }
 
@@ -287,13 +304,14 @@ TEST(SlicerModule, EveryParameterHasALabelADescriptionAndADefault)
         EXPECT_NE(body.find("<default>"), std::string::npos);
     }
     EXPECT_GE(count, 4);
-    for (const char * header : { "<category>",
-                                 "<title>",
-                                 "<description>",
-                                 "<version>0.1.0</version>",
-                                 "<documentation-url>http",
-                                 "<license>",
-                                 "<contributor>" })
+    // The version is CMake's project version (DCV_PROJECT_VERSION, test/CMakeLists.txt).
+    for (const std::string header : { std::string("<category>"),
+                                      std::string("<title>"),
+                                      std::string("<description>"),
+                                      "<version>" + std::string(DCV_PROJECT_VERSION) + "</version>",
+                                      std::string("<documentation-url>http"),
+                                      std::string("<license>"),
+                                      std::string("<contributor>") })
       EXPECT_NE(xml.find(header), std::string::npos) << header;
   }
 }
@@ -307,13 +325,21 @@ TEST(SlicerModule, TheParserHasExactlyTheFlagsOfTheDescription)
     SCOPED_TRACE(ModuleName(module));
     const std::string     xml = ModuleXML(module);
     std::set<std::string> declared = own;
-    const std::regex      longflag("<longflag>-*([^<]+)</longflag>");
+    // A long flag and its aliases (the hyphenated spellings of earlier versions, which CTK's schema refuses
+    // as a longflag, are deprecated aliases).
+    const std::regex longflag("<longflag( [^>]*)?>-*([^<]+)</longflag>");
+    const std::regex alias("alias=\"([^\"]*)\"");
     for (std::sregex_iterator it(xml.begin(), xml.end(), longflag), end; it != end; ++it)
-      declared.insert("--" + (*it)[1].str());
+    {
+      declared.insert("--" + (*it)[2].str());
+      const std::string attributes = (*it)[1];
+      for (std::sregex_iterator a(attributes.begin(), attributes.end(), alias); a != end; ++a)
+        declared.insert("--" + (*a)[1].str());
+    }
     const auto help = RunCommand(Shell(module) + " --help");
     EXPECT_EQ(help.status, 0);
     std::set<std::string> accepted;
-    const std::regex      option("(^|[ ,])(--[a-z][a-z-]*)");
+    const std::regex      option("(^|[ ,])(--[a-zA-Z][a-zA-Z0-9_-]*)");
     for (std::sregex_iterator it(help.output.begin(), help.output.end(), option), end; it != end; ++it)
       accepted.insert((*it)[2]);
     EXPECT_EQ(accepted, declared) << help.output;

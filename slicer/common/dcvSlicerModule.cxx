@@ -80,10 +80,30 @@ struct DescriptionReader
   std::string              error;
 
   void
-  Start(const std::string & tag)
+  Start(const std::string & tag, const XML_Char ** attributes)
   {
     open.push_back(tag);
     text.clear();
+    // Other spellings of a long flag (the hyphenated ones of earlier versions, which CTK's schema refuses
+    // as a longflag), accepted as Slicer's generated parsers accept them.
+    if (open.size() == 4 && open[1] == "parameters" && tag == "longflag")
+    {
+      for (const XML_Char ** a = attributes; a != nullptr && a[0] != nullptr; a += 2)
+      {
+        const std::string attribute = a[0];
+        if (attribute == "alias" || attribute == "deprecatedalias")
+        {
+          std::istringstream in(a[1]);
+          std::string        alias;
+          while (std::getline(in, alias, ','))
+          {
+            alias = WithoutDashes(Trimmed(alias));
+            if (!alias.empty())
+              current.longflagAliases.push_back(alias);
+          }
+        }
+      }
+    }
     if (open.size() == 3 && open[1] == "parameters" && !IsHeaderElement(tag))
     {
       if (KnownTags().count(tag) == 0 && error.empty())
@@ -149,9 +169,9 @@ struct DescriptionReader
 };
 
 void XMLCALL
-OnStart(void * data, const XML_Char * name, const XML_Char **)
+OnStart(void * data, const XML_Char * name, const XML_Char ** attributes)
 {
-  static_cast<DescriptionReader *>(data)->Start(name);
+  static_cast<DescriptionReader *>(data)->Start(name, attributes);
 }
 
 void XMLCALL
@@ -180,7 +200,9 @@ CheckDescription(const ModuleDescription & d)
       throw std::runtime_error("parameter name '" + p.name + "' is used twice");
     if (p.flag.size() > 1)
       throw std::runtime_error("parameter '" + p.name + "': a flag is one character, got '" + p.flag + "'");
-    for (const std::string & f : { p.flag, p.longflag })
+    std::vector<std::string> spellings{ p.flag, p.longflag };
+    spellings.insert(spellings.end(), p.longflagAliases.begin(), p.longflagAliases.end());
+    for (const std::string & f : spellings)
     {
       if (!f.empty() && !flags.insert(f).second)
         throw std::runtime_error("flag '" + f + "' is used twice");
@@ -433,6 +455,8 @@ RunModule(const char * xml, int argc, char * argv[], const std::function<void(Ar
       std::string names = p.flag.empty() ? "" : "-" + p.flag;
       if (!p.longflag.empty())
         names += (names.empty() ? "--" : ",--") + p.longflag;
+      for (const std::string & alias : p.longflagAliases)
+        names += (names.empty() ? "--" : ",--") + alias;
       const std::string help = p.label + ": " + p.description;
       if (p.tag == "boolean")
       {

@@ -49,6 +49,8 @@ struct Parameter
   std::string channel; // input, output, or empty
   int         index{ -1 };
   bool        hasDefault{ false };
+  /** The longflag's alias and deprecatedalias attributes (without dashes): other spellings it accepts. */
+  std::vector<std::string> longflagAliases;
 
   /** A value the module gives back through the return parameter file: an output with neither
    * index nor flag (Slicer passes nothing for it). */
@@ -157,7 +159,7 @@ private:
 };
 
 /** The encoder's options from the parameters DCVCompress and DCVApproximate share (bpv, psnr, mode,
- * no-residual-layer, step, domain-sigma, range-sigma, alpha, scale): a PSNR above 0 replaces the bit
+ * noResidualLayer, step, domainSigma, rangeSigma, alpha, scale): a PSNR above 0 replaces the bit
  * rate; every value checked as the library checks it (dcv::tools::Failure naming the option). */
 EncoderOptions
 EncoderOptionsFrom(const Arguments & arguments);

@@ -17,6 +17,7 @@
  *=========================================================================*/
 #include "dcvDicomWriter.h"
 #include "dcvTools.h"
+#include "dcvVersion.h"
 
 #include <dcmtk/dcmdata/dctk.h>
 
@@ -262,7 +263,7 @@ WriteDicomSeries(const FileHeader & header, std::size_t compressedBytes,
         Put(ds, DCM_ManufacturerModelName, get("ManufacturerModelName"));
       if (!get("InstitutionName").empty())
         Put(ds, DCM_InstitutionName, get("InstitutionName"));
-      Put(ds, DCM_SoftwareVersions, "dcv 0.1.0");
+      Put(ds, DCM_SoftwareVersions, std::string("dcv ") + ModuleVersion);
       Put(ds, DCM_InstanceNumber, std::to_string(z + 1));
       Put(ds, DCM_ImageType, ct ? "DERIVED\\SECONDARY\\AXIAL" : "DERIVED\\SECONDARY");
       Put(ds, DCM_DerivationDescription, derivation);
@@ -354,6 +355,12 @@ WriteDicomSeries(const FileHeader & header, std::size_t compressedBytes,
     fs::remove_all(temporary, ignored);
     throw;
   }
+}
+
+std::string
+DicomLibraryVersion()
+{
+  return std::string("DCMTK ") + OFFIS_DCMTK_VERSION_STRING;
 }
 
 } // namespace dcv::tools

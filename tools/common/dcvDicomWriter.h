@@ -39,6 +39,10 @@ WriteDicomSeries(const FileHeader & header, std::size_t compressedBytes,
                  const std::function<void(int32_t z, std::vector<double> & values)> & slice,
                  const std::string & directory, bool force);
 
+/** "DCMTK 3.6.7": the DICOM writer's library and the version the programs were built with. */
+std::string
+DicomLibraryVersion();
+
 } // namespace dcv::tools
 
 #endif

@@ -18,8 +18,10 @@
 // dcv: the command-line face of the DelaunayCompression module. The subcommands are the files
 // beside this one (dcvCompress.cxx, dcvDecompress.cxx, ...).
 #include "dcvCommand.h"
+#include "dcvDicomWriter.h"
 #include "dcvProgress.h"
 #include "dcvResidualLayer.h"
+#include "dcvVersion.h"
 
 #include "itkMacro.h"
 #include "itkMultiThreaderBase.h"
@@ -240,7 +242,10 @@ main(int argc, char * argv[])
   CLI::App app{ "dcv: lossy compression of 3D volumes by linear splines over adaptive Delaunay tetrahedralizations "
                 "(ITK module DelaunayCompression)" };
   app.require_subcommand(1);
-  app.set_version_flag("--version", "dcv 0.1.0");
+  // The module's version (CMake's project version) and the libraries it was built with, for bug reports.
+  app.set_version_flag("--version",
+                       std::string("dcv ") + dcv::ModuleVersion + "\n" + dcv::LibraryVersions() + ", " +
+                         DicomLibraryVersion());
   auto & commands = Commands();
   std::sort(commands.begin(), commands.end(), [](const Command & a, const Command & b) { return a.name < b.name; });
   std::vector<std::pair<CLI::App *, std::function<void()>>> runs;
