@@ -416,6 +416,14 @@ TEST_F(Batch, DicomSeriesAreItemsNamedByDirectoryAndSeriesInstanceUid)
                 file.header.metadata.end(),
                 std::make_pair(std::string("DICOM SeriesInstanceUID"), name.substr(name.rfind('_') + 1)));
     EXPECT_NE(stored, file.header.metadata.end()) << name;
+    // Every file's header, as compress keeps it (the 28 files, all of each).
+    const auto header = std::find_if(file.header.metadata.begin(), file.header.metadata.end(), [](const auto & kv) {
+      return kv.first == dcv::DicomHeaderKey;
+    });
+    ASSERT_NE(header, file.header.metadata.end()) << name;
+    const auto block = dcv::SplitDicomHeader(header->second, name);
+    EXPECT_EQ(block.mode, 0) << name;
+    EXPECT_EQ(block.files.size(), 28u) << name;
   }
 }
 
