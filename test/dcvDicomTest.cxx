@@ -181,8 +181,9 @@ TEST_F(DicomInput, RefusesAFileWhosePixelDataIsCutShort)
 {
   // 531932 bytes, the pixel data's 524288 from byte 7642: cut to 400000, 131930 of them are missing.
   CutShort(m_Series + "/I140.dcm", 400000);
-  const std::vector<std::string> phrases{ "I140.dcm", "it is cut short", "pixel data is 524288 bytes",
-                                          "131930 bytes missing" };
+  const std::vector<std::string> phrases{
+    "I140.dcm", "it is cut short", "pixel data is 524288 bytes", "131930 bytes missing"
+  };
   ExpectRefused(phrases);
   const Result r = RunDcv("convert " + m_Series + " " + Path("out.nrrd"));
   EXPECT_EQ(r.status, 1) << r.output;
@@ -794,11 +795,11 @@ protected:
         if (std::find(Changed.begin(), Changed.end(), t) != Changed.end())
           continue;
         DcmElement * same = nullptr;
-        EXPECT_TRUE(r.findAndGetElement(t, same).good()) << name << ": " << t.toString() << " " << DcmTag(t).getTagName()
-                                                         << " of " << source << " is missing";
+        EXPECT_TRUE(r.findAndGetElement(t, same).good())
+          << name << ": " << t.toString() << " " << DcmTag(t).getTagName() << " of " << source << " is missing";
         if (same)
-          EXPECT_EQ(e->compare(*same), 0) << name << ": " << t.toString() << " " << DcmTag(t).getTagName()
-                                          << " differs from " << source;
+          EXPECT_EQ(e->compare(*same), 0)
+            << name << ": " << t.toString() << " " << DcmTag(t).getTagName() << " differs from " << source;
       }
       for (unsigned long i = 0; i < r.card(); ++i)
         returnedPrivates += (r.getElement(i)->getTag().getGroup() & 1) ? 1 : 0;
@@ -850,7 +851,9 @@ TEST_F(DicomHeaders, Latin1NamesComeBackByteForByteWithTheWholeHeader)
     EditFile(f,
              { { DCM_SpecificCharacterSet, "ISO_IR 100" },
                { DCM_PatientName, "M\xfcller^J\xfcrgen" },
-               { DCM_StudyDescription, "Sch\xe4" "del nativ" } });
+               { DCM_StudyDescription,
+                 "Sch\xe4"
+                 "del nativ" } });
   }
   const std::string out = RoundTrip();
   ExpectTrueToTheOriginals(out, { DCM_SpecificCharacterSet, DCM_PatientName, DCM_StudyDescription });
@@ -869,8 +872,9 @@ TEST_F(DicomHeaders, Utf8AndIso2022NamesComeBackByteForByte)
     if (i % 2 == 0)
       EditFile(m_Files[i],
                { { DCM_SpecificCharacterSet, "ISO_IR 192" },
-                 { DCM_PatientName, "\xe1\xbd\x88\xce\xb4\xcf\x85\xcf\x83\xcf\x83\xce\xb5\xcf\x8d\xcf\x82^"
-                                    "\xce\x9c\xe1\xbf\x86\xcf\x84\xce\xb9\xcf\x82=\xe7\x8e\x8b^\xe5\xb0\x8f\xe6\x98\x8e" } });
+                 { DCM_PatientName,
+                   "\xe1\xbd\x88\xce\xb4\xcf\x85\xcf\x83\xcf\x83\xce\xb5\xcf\x8d\xcf\x82^"
+                   "\xce\x9c\xe1\xbf\x86\xcf\x84\xce\xb9\xcf\x82=\xe7\x8e\x8b^\xe5\xb0\x8f\xe6\x98\x8e" } });
     else
       EditFile(m_Files[i], { { DCM_SpecificCharacterSet, "\\ISO 2022 IR 87" }, { DCM_PatientName, Yamada } });
   }
@@ -892,8 +896,13 @@ TEST_F(DicomHeaders, TwoWindowsAndPerSliceValuesAreKept)
   }
   const std::string out = RoundTrip();
   ExpectTrueToTheOriginals(out,
-                           { DCM_WindowCenter, DCM_WindowWidth, DCM_WindowCenterWidthExplanation, DCM_ImageComments,
-                             DCM_ExposureTime, DCM_ConvolutionKernel, DCM_ProtocolName });
+                           { DCM_WindowCenter,
+                             DCM_WindowWidth,
+                             DCM_WindowCenterWidthExplanation,
+                             DCM_ImageComments,
+                             DCM_ExposureTime,
+                             DCM_ConvolutionKernel,
+                             DCM_ProtocolName });
 }
 
 TEST_F(DicomHeaders, EssentialKeepsAValidSeriesInFewerBytes)
@@ -932,12 +941,11 @@ TEST_F(DicomHeaders, AFileWithoutTheHeaderBlockStillGivesADerivedSeries)
   const Result c = RunDcv("compress " + m_Series + " " + Path("ct.dcv") + " --bpv 0.125");
   ASSERT_EQ(c.status, 0) << c.output;
   // The file as it was before the header block: the fixed list of attributes alone.
-  auto file = dcv::ReadCompressedFile(Path("ct.dcv"));
+  auto   file = dcv::ReadCompressedFile(Path("ct.dcv"));
   auto & metadata = file.header.metadata;
-  metadata.erase(std::remove_if(metadata.begin(),
-                                metadata.end(),
-                                [](const auto & kv) { return kv.first == dcv::DicomHeaderKey; }),
-                 metadata.end());
+  metadata.erase(
+    std::remove_if(metadata.begin(), metadata.end(), [](const auto & kv) { return kv.first == dcv::DicomHeaderKey; }),
+    metadata.end());
   dcv::WriteFileAtomically(Path("old.dcv"), dcv::SerializeFile(file.header, file.payload));
   EXPECT_EQ(RunDcv("info " + Path("old.dcv")).output.find("DICOM header: "), std::string::npos);
   const Result d = RunDcv("decompress " + Path("old.dcv") + " " + Path("returned") + " --dicom");

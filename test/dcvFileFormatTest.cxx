@@ -385,8 +385,15 @@ TEST(FileFormat, DicomHeaderBlockRoundTripsAndADamagedOneIsRefused)
 {
   DicomHeaderBlock block;
   block.mode = 1;
-  block.common = std::string("\x08\x00\x60\x00" "CS\x02\x00" "CT", 10);
-  block.files = { std::string("\x20\x00\x13\x00" "IS\x02\x00" "1 ", 10), "" };
+  block.common = std::string("\x08\x00\x60\x00"
+                             "CS\x02\x00"
+                             "CT",
+                             10);
+  block.files = { std::string("\x20\x00\x13\x00"
+                              "IS\x02\x00"
+                              "1 ",
+                              10),
+                  "" };
   FileHeader h = SampleHeader(true);
   h.metadata.emplace_back(DicomHeaderKey, JoinDicomHeader(block));
   const auto           bytes = SerializeFile(h, { 1, 2, 3 });

@@ -150,10 +150,10 @@ LoadHeader(const std::string & file, DcmFileFormat & f)
   const uint64_t needed = (uint64_t(rows) * columns * std::max<Uint16>(samples, 1) * bits * uint64_t(frames) + 7) / 8;
   if (length < needed)
   {
-    throw Failure(what + ": its pixel data is " + Count(length) + " bytes; its rows, columns, samples, bits and frames (" +
-                  Count(columns) + " x " + Count(rows) + " x " + Count(samples) + " x " + Count(bits) + " bits x " +
-                  Count(uint64_t(frames)) + ") need " + Count(needed) + " (" + Count(needed - length) +
-                  " bytes missing)");
+    throw Failure(what + ": its pixel data is " + Count(length) +
+                  " bytes; its rows, columns, samples, bits and frames (" + Count(columns) + " x " + Count(rows) +
+                  " x " + Count(samples) + " x " + Count(bits) + " bits x " + Count(uint64_t(frames)) + ") need " +
+                  Count(needed) + " (" + Count(needed - length) + " bytes missing)");
   }
 }
 
@@ -236,11 +236,11 @@ Essential(const DcmTagKey & t)
 std::string
 Encode(DcmObject & element, const std::string & file)
 {
-  std::string          out;
-  std::vector<Uint8>   buffer(1 << 16);
+  std::string           out;
+  std::vector<Uint8>    buffer(1 << 16);
   DcmOutputBufferStream stream(buffer.data(), offile_off_t(buffer.size()));
-  void *               data = nullptr;
-  offile_off_t         n = 0;
+  void *                data = nullptr;
+  offile_off_t          n = 0;
   element.transferInit();
   OFCondition c;
   while ((c = element.write(stream, EXS_LittleEndianExplicit, EET_ExplicitLength, nullptr)) == EC_StreamNotifyClient)

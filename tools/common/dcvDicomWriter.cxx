@@ -248,9 +248,14 @@ Derive(DcmDataset & ds, const std::string & series, const std::string & now, con
   Put(ds, DCM_PixelRepresentation, enc.isSigned ? "1" : "0");
   Put(ds, DCM_RescaleIntercept, Decimal(enc.intercept));
   Put(ds, DCM_RescaleSlope, Decimal(enc.slope));
-  for (const DcmTagKey & gone : { DCM_SmallestImagePixelValue, DCM_LargestImagePixelValue,
-                                  DCM_SmallestPixelValueInSeries, DCM_LargestPixelValueInSeries, DCM_PixelPaddingValue,
-                                  DCM_PixelPaddingRangeLimit, DCM_PlanarConfiguration, DCM_NumberOfFrames })
+  for (const DcmTagKey & gone : { DCM_SmallestImagePixelValue,
+                                  DCM_LargestImagePixelValue,
+                                  DCM_SmallestPixelValueInSeries,
+                                  DCM_LargestPixelValueInSeries,
+                                  DCM_PixelPaddingValue,
+                                  DCM_PixelPaddingRangeLimit,
+                                  DCM_PlanarConfiguration,
+                                  DCM_NumberOfFrames })
   {
     ds.findAndDeleteElement(gone);
   }
@@ -382,80 +387,80 @@ WriteDicomSeries(const FileHeader & header, std::size_t compressedBytes,
       }
       else
       {
-      Put(ds, DCM_SOPClassUID, ct ? UID_CTImageStorage : UID_SecondaryCaptureImageStorage);
-      Put(ds, DCM_SOPInstanceUID, NewUid());
-      Put(ds, DCM_StudyInstanceUID, study);
-      Put(ds, DCM_SeriesInstanceUID, series);
-      Put(ds, DCM_FrameOfReferenceUID, frame);
-      Put(ds, DCM_PositionReferenceIndicator, "");
-      Put(ds, DCM_PatientName, get("PatientName", fromDicom ? "" : "DCV^PLACEHOLDER"));
-      Put(ds, DCM_PatientID, get("PatientID", fromDicom ? "" : "DCV-" + series.substr(series.size() - 8)));
-      Put(ds, DCM_PatientBirthDate, get("PatientBirthDate"));
-      Put(ds, DCM_PatientSex, get("PatientSex"));
-      Put(ds, DCM_StudyDate, get("StudyDate", now.substr(0, 8)));
-      Put(ds, DCM_StudyTime, get("StudyTime", now.substr(8)));
-      Put(ds, DCM_ReferringPhysicianName, get("ReferringPhysicianName"));
-      Put(ds, DCM_StudyID, get("StudyID"));
-      Put(ds, DCM_AccessionNumber, get("AccessionNumber"));
-      if (!get("StudyDescription").empty() || !fromDicom)
-        Put(ds, DCM_StudyDescription, get("StudyDescription", "Not from DICOM: placeholder study (dcv)"));
-      Put(ds, DCM_Modality, get("Modality", "OT"));
-      if (!get("BodyPartExamined").empty())
-        Put(ds, DCM_BodyPartExamined, get("BodyPartExamined"));
-      if (!ct || get("BodyPartExamined").empty())
-        Put(ds, DCM_Laterality, ""); // type 2C: a paired body part (or one not known) needs it
-      Put(ds, DCM_SeriesNumber, std::to_string(std::stoi(get("SeriesNumber", "0")) + 9000));
-      Put(ds, DCM_SeriesDescription, (get("SeriesDescription") + " dcv lossy").substr(0, 64));
-      Put(ds, DCM_Manufacturer, get("Manufacturer"));
-      if (!get("ManufacturerModelName").empty())
-        Put(ds, DCM_ManufacturerModelName, get("ManufacturerModelName"));
-      if (!get("InstitutionName").empty())
-        Put(ds, DCM_InstitutionName, get("InstitutionName"));
-      Put(ds, DCM_SoftwareVersions, "dcv 0.1.0");
-      Put(ds, DCM_InstanceNumber, std::to_string(z + 1));
-      Put(ds, DCM_ImageType, ct ? "DERIVED\\SECONDARY\\AXIAL" : "DERIVED\\SECONDARY");
-      Put(ds, DCM_DerivationDescription, derivation);
-      Put(ds, DCM_LossyImageCompression, "01");
-      Put(ds, DCM_LossyImageCompressionRatio, Decimal(ratio));
-      Put(ds, DCM_LossyImageCompressionMethod, "DCV");
-      Put(ds, DCM_ContentDate, now.substr(0, 8));
-      Put(ds, DCM_ContentTime, now.substr(8));
-      if (!ct)
-      {
-        Put(ds, DCM_ConversionType, "WSD");
-        Put(ds, DCM_PatientOrientation, "");
-      }
-      else
-      {
-        Put(ds, DCM_KVP, get("KVP"));
-        Put(ds, DCM_PatientPosition, get("PatientPosition")); // type 2C for CT
-        Put(ds, DCM_AcquisitionNumber, "");
-      }
-      // Image plane: axis 0 along a row (columns), axis 1 down a column (rows).
-      Put(ds, DCM_PixelSpacing, Decimal(header.spacing[1]) + "\\" + Decimal(header.spacing[0]));
-      Put(ds,
-          DCM_ImageOrientationPatient,
-          Decimal(d[0]) + "\\" + Decimal(d[3]) + "\\" + Decimal(d[6]) + "\\" + Decimal(d[1]) + "\\" + Decimal(d[4]) +
-            "\\" + Decimal(d[7]));
-      std::string position;
-      for (int r = 0; r < 3; ++r)
-      {
-        position += (r ? "\\" : "") + Decimal(header.origin[r] + d[3 * r + 2] * header.spacing[2] * z);
-      }
-      Put(ds, DCM_ImagePositionPatient, position);
-      Put(ds, DCM_SliceThickness, get("SliceThickness", Decimal(header.spacing[2])));
-      Put(ds, DCM_SamplesPerPixel, "1");
-      Put(ds, DCM_PhotometricInterpretation, "MONOCHROME2");
-      Put(ds, DCM_Rows, std::to_string(ny));
-      Put(ds, DCM_Columns, std::to_string(nx));
-      Put(ds, DCM_BitsAllocated, "16");
-      Put(ds, DCM_BitsStored, std::to_string(enc.bitsStored));
-      Put(ds, DCM_HighBit, std::to_string(enc.bitsStored - 1));
-      Put(ds, DCM_PixelRepresentation, enc.isSigned ? "1" : "0");
-      Put(ds, DCM_RescaleIntercept, Decimal(enc.intercept));
-      Put(ds, DCM_RescaleSlope, Decimal(enc.slope));
-      if (!ct)
-        Put(ds, DCM_RescaleType, "US");
+        Put(ds, DCM_SOPClassUID, ct ? UID_CTImageStorage : UID_SecondaryCaptureImageStorage);
+        Put(ds, DCM_SOPInstanceUID, NewUid());
+        Put(ds, DCM_StudyInstanceUID, study);
+        Put(ds, DCM_SeriesInstanceUID, series);
+        Put(ds, DCM_FrameOfReferenceUID, frame);
+        Put(ds, DCM_PositionReferenceIndicator, "");
+        Put(ds, DCM_PatientName, get("PatientName", fromDicom ? "" : "DCV^PLACEHOLDER"));
+        Put(ds, DCM_PatientID, get("PatientID", fromDicom ? "" : "DCV-" + series.substr(series.size() - 8)));
+        Put(ds, DCM_PatientBirthDate, get("PatientBirthDate"));
+        Put(ds, DCM_PatientSex, get("PatientSex"));
+        Put(ds, DCM_StudyDate, get("StudyDate", now.substr(0, 8)));
+        Put(ds, DCM_StudyTime, get("StudyTime", now.substr(8)));
+        Put(ds, DCM_ReferringPhysicianName, get("ReferringPhysicianName"));
+        Put(ds, DCM_StudyID, get("StudyID"));
+        Put(ds, DCM_AccessionNumber, get("AccessionNumber"));
+        if (!get("StudyDescription").empty() || !fromDicom)
+          Put(ds, DCM_StudyDescription, get("StudyDescription", "Not from DICOM: placeholder study (dcv)"));
+        Put(ds, DCM_Modality, get("Modality", "OT"));
+        if (!get("BodyPartExamined").empty())
+          Put(ds, DCM_BodyPartExamined, get("BodyPartExamined"));
+        if (!ct || get("BodyPartExamined").empty())
+          Put(ds, DCM_Laterality, ""); // type 2C: a paired body part (or one not known) needs it
+        Put(ds, DCM_SeriesNumber, std::to_string(std::stoi(get("SeriesNumber", "0")) + 9000));
+        Put(ds, DCM_SeriesDescription, (get("SeriesDescription") + " dcv lossy").substr(0, 64));
+        Put(ds, DCM_Manufacturer, get("Manufacturer"));
+        if (!get("ManufacturerModelName").empty())
+          Put(ds, DCM_ManufacturerModelName, get("ManufacturerModelName"));
+        if (!get("InstitutionName").empty())
+          Put(ds, DCM_InstitutionName, get("InstitutionName"));
+        Put(ds, DCM_SoftwareVersions, "dcv 0.1.0");
+        Put(ds, DCM_InstanceNumber, std::to_string(z + 1));
+        Put(ds, DCM_ImageType, ct ? "DERIVED\\SECONDARY\\AXIAL" : "DERIVED\\SECONDARY");
+        Put(ds, DCM_DerivationDescription, derivation);
+        Put(ds, DCM_LossyImageCompression, "01");
+        Put(ds, DCM_LossyImageCompressionRatio, Decimal(ratio));
+        Put(ds, DCM_LossyImageCompressionMethod, "DCV");
+        Put(ds, DCM_ContentDate, now.substr(0, 8));
+        Put(ds, DCM_ContentTime, now.substr(8));
+        if (!ct)
+        {
+          Put(ds, DCM_ConversionType, "WSD");
+          Put(ds, DCM_PatientOrientation, "");
+        }
+        else
+        {
+          Put(ds, DCM_KVP, get("KVP"));
+          Put(ds, DCM_PatientPosition, get("PatientPosition")); // type 2C for CT
+          Put(ds, DCM_AcquisitionNumber, "");
+        }
+        // Image plane: axis 0 along a row (columns), axis 1 down a column (rows).
+        Put(ds, DCM_PixelSpacing, Decimal(header.spacing[1]) + "\\" + Decimal(header.spacing[0]));
+        Put(ds,
+            DCM_ImageOrientationPatient,
+            Decimal(d[0]) + "\\" + Decimal(d[3]) + "\\" + Decimal(d[6]) + "\\" + Decimal(d[1]) + "\\" + Decimal(d[4]) +
+              "\\" + Decimal(d[7]));
+        std::string position;
+        for (int r = 0; r < 3; ++r)
+        {
+          position += (r ? "\\" : "") + Decimal(header.origin[r] + d[3 * r + 2] * header.spacing[2] * z);
+        }
+        Put(ds, DCM_ImagePositionPatient, position);
+        Put(ds, DCM_SliceThickness, get("SliceThickness", Decimal(header.spacing[2])));
+        Put(ds, DCM_SamplesPerPixel, "1");
+        Put(ds, DCM_PhotometricInterpretation, "MONOCHROME2");
+        Put(ds, DCM_Rows, std::to_string(ny));
+        Put(ds, DCM_Columns, std::to_string(nx));
+        Put(ds, DCM_BitsAllocated, "16");
+        Put(ds, DCM_BitsStored, std::to_string(enc.bitsStored));
+        Put(ds, DCM_HighBit, std::to_string(enc.bitsStored - 1));
+        Put(ds, DCM_PixelRepresentation, enc.isSigned ? "1" : "0");
+        Put(ds, DCM_RescaleIntercept, Decimal(enc.intercept));
+        Put(ds, DCM_RescaleSlope, Decimal(enc.slope));
+        if (!ct)
+          Put(ds, DCM_RescaleType, "US");
       }
       slice(z, values);
       for (std::size_t i = 0; i < pixels.size(); ++i)

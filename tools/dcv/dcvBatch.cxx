@@ -243,10 +243,13 @@ Batch(const BatchOptions & b)
     for (std::size_t i; (i = next++) < items.size();)
     {
       progress.Started(worker, items[i].name);
-      outcomes[i] =
-        CompressItem(items[i], outputDir, base, b.method.force, b.method.resample, b.method.dicomHeader, [&progress, worker](double f) {
-          progress.Fraction(worker, f);
-        });
+      outcomes[i] = CompressItem(items[i],
+                                 outputDir,
+                                 base,
+                                 b.method.force,
+                                 b.method.resample,
+                                 b.method.dicomHeader,
+                                 [&progress, worker](double f) { progress.Fraction(worker, f); });
       progress.Finished(worker, items[i].name, outcomes[i]);
     }
   };

@@ -208,9 +208,9 @@ CheckDicomHeaderFits(const std::string & input, const VolumeInput & volume, cons
     return;
   }
   std::ostringstream message;
-  message << "cannot compress " << Quoted(input) << ": its DICOM header (" << DicomHeaderModeName(mode)
-          << ") takes " << header << " bytes, the file's header and metadata " << bytes << ", and --bpv "
-          << options.bitsPerVoxel << " allows " << std::size_t(budget) << " bytes for the whole file";
+  message << "cannot compress " << Quoted(input) << ": its DICOM header (" << DicomHeaderModeName(mode) << ") takes "
+          << header << " bytes, the file's header and metadata " << bytes << ", and --bpv " << options.bitsPerVoxel
+          << " allows " << std::size_t(budget) << " bytes for the whole file";
   const auto least = [voxels](std::size_t n) { return std::ceil(double(n + 1) * 8.0 / double(voxels) * 1e4) / 1e4; };
   if (mode == DicomHeaderMode::Full)
   {
