@@ -27,8 +27,8 @@ Usage:
     dcv_reference_decoder.py FILE.dcv [--neighbours NEIGHBOURS.txt]
 
 Prints the header fields, one per line ("name value ..."; floats as Python's repr, which reads back
-exactly; one "metadata KEY VALUE" line per pair, both as JSON strings), then one line "x y z" per point in
-decoding order.
+exactly; one "metadata KEY VALUE" line per pair, both as JSON strings; the "DICOM Header" value, which is
+bytes, as its mode and counts), then one line "x y z" per point in decoding order.
 
 Values: a value depends on the vertex's Delaunay neighbours under CGAL's symbolic perturbation
 (section "Tetrahedralization"), which a standard-library script cannot build efficiently. So this script

@@ -189,6 +189,50 @@ WithSuffix(const std::string & text, const std::string & suffix, std::size_t lim
  * new SOP Instance and Series Instance UIDs, Image Type DERIVED\\SECONDARY, lossy compression, derivation
  * and its codes, the source image, instance creation, series number and description, software
  * versions, the pixel module as stored. Everything else stays as the original has it, byte for byte. */
+/** The type 2 attributes (and the conditional ones the series' own writer path sets) an original lacks,
+ * empty: a derived series is valid even where its original was not. Present ones are kept as they are. */
+void
+CompleteType2(DcmDataset & ds, int32_t z)
+{
+  const auto absent = [&ds](const DcmTagKey & key) { return !ds.tagExists(key); };
+  for (const DcmTagKey & key : { DCM_PatientName,
+                                 DCM_PatientID,
+                                 DCM_PatientBirthDate,
+                                 DCM_PatientSex,
+                                 DCM_StudyDate,
+                                 DCM_StudyTime,
+                                 DCM_ReferringPhysicianName,
+                                 DCM_StudyID,
+                                 DCM_AccessionNumber,
+                                 DCM_PositionReferenceIndicator,
+                                 DCM_Manufacturer })
+  {
+    if (absent(key))
+      Put(ds, key, "");
+  }
+  if (absent(DCM_InstanceNumber))
+    Put(ds, DCM_InstanceNumber, std::to_string(z + 1));
+  const std::string sopClass = Get(ds, DCM_SOPClassUID);
+  const bool        ct = sopClass == UID_CTImageStorage;
+  if (absent(DCM_Laterality) && (!ct || absent(DCM_BodyPartExamined)))
+    Put(ds, DCM_Laterality, ""); // type 2C: a paired body part (or one not known) needs it
+  if (ct)
+  {
+    for (const DcmTagKey & key : { DCM_KVP, DCM_AcquisitionNumber, DCM_PatientPosition })
+    {
+      if (absent(key))
+        Put(ds, key, "");
+    }
+  }
+  if (sopClass == UID_SecondaryCaptureImageStorage)
+  {
+    if (absent(DCM_ConversionType))
+      Put(ds, DCM_ConversionType, "WSD");
+    if (absent(DCM_PatientOrientation))
+      Put(ds, DCM_PatientOrientation, "");
+  }
+}
+
 void
 Derive(DcmDataset & ds, const std::string & series, const std::string & now, const std::string & derivation,
        double ratio, const PixelEncoding & enc, int32_t columns, int32_t rows, const std::string & software)
@@ -384,6 +428,7 @@ WriteDicomSeries(const FileHeader & header, std::size_t compressedBytes,
       if (headers)
       {
         Derive(ds, series, now, derivation, ratio, enc, nx, ny, "dcv 0.1.0");
+        CompleteType2(ds, z);
       }
       else
       {
