@@ -143,6 +143,29 @@ struct FileHeader
   bool constantSpline{ false };
 };
 
+/** The metadata key whose value holds the headers of the DICOM files a volume came from (docs/format.md,
+ * "DICOM header"): bytes, not text. */
+constexpr const char * DicomHeaderKey = "DICOM Header";
+
+/** The value of the "DICOM Header" pair: the data elements (DICOM explicit VR little endian) equal in
+ * every file once, then each file's others, in slice order. */
+struct DicomHeaderBlock
+{
+  static constexpr uint8_t Version = 1;
+  uint8_t                  mode{ 0 }; // 0: every attribute; 1: the essential ones
+  std::string              common;
+  std::vector<std::string> files;
+};
+
+/** The value of a "DICOM Header" pair. */
+DelaunayCompression_EXPORT std::string
+                           JoinDicomHeader(const DicomHeaderBlock & block);
+
+/** Parses the value of a "DICOM Header" pair (its version, mode, counts and lengths; the elements are
+ * the DICOM reader's to parse); throws FormatError starting with `name`. ParseFile() checks it so. */
+DelaunayCompression_EXPORT DicomHeaderBlock
+SplitDicomHeader(const std::string & value, const std::string & name);
+
 /** The bytes of a whole file. */
 DelaunayCompression_EXPORT std::vector<uint8_t>
                            SerializeFile(const FileHeader & header, const std::vector<uint8_t> & payload);

@@ -27,8 +27,8 @@ Usage:
     dcv_reference_decoder.py FILE.dcv [--neighbours NEIGHBOURS.txt]
 
 Prints the header fields, one per line ("name value ..."; floats as Python's repr, which reads back
-exactly; one "metadata KEY VALUE" line per pair, both as JSON strings), then one line "x y z" per point in
-decoding order.
+exactly; one "metadata KEY VALUE" line per pair, both as JSON strings; the "DICOM Header" value, which is
+bytes, as its mode and counts), then one line "x y z" per point in decoding order.
 
 Values: a value depends on the vertex's Delaunay neighbours under CGAL's symbolic perturbation
 (section "Tetrahedralization"), which a standard-library script cannot build efficiently. So this script
@@ -79,6 +79,26 @@ AXIS_PERMUTATIONS = ((0, 1, 2), (0, 2, 1), (1, 0, 2), (1, 2, 0), (2, 0, 1), (2, 
 LOW_BAND_WEIGHT = (5917, 8012, 11201, 15795, 22321, 31560)
 HIGH_BAND_WEIGHT = (4096, 4639, 6084, 8428, 11856, 16744)
 MAXIMUM_INFLATED_METADATA = 16 << 20
+DICOM_HEADER_KEY = "DICOM Header"
+
+
+def split_dicom_header(value):
+    """Section "DICOM header": version 1, mode, N files, the common part, then each file's part, each a
+    uint32 length and that many bytes of DICOM data elements (explicit VR little endian), nothing after.
+    Returns (mode, common, [part of each file]); the elements are not parsed here."""
+    f = _Fields(value, 0, len(value))
+    version, mode, files = f.unpack("BBI", "DICOM header")
+    if version != 1:
+        raise DamagedFile("DICOM header block of unknown version %d" % version)
+    if mode > 1 or files < 1 or files > 65535 or files > f.left() // 4:
+        raise DamagedFile("inconsistent DICOM header block")
+    parts = []
+    for _ in range(files + 1):
+        (length,) = f.unpack("I", "DICOM header")
+        parts.append(f.take(length, "DICOM header"))
+    if f.left() != 0:
+        raise DamagedFile("inconsistent DICOM header block")
+    return mode, parts[0], parts[1:]
 IDENTITY = (1.0, 0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 1.0)
 
 
@@ -271,9 +291,16 @@ def parse_container(data):
             pair = []
             for _ in range(2):
                 (text_length,) = m.unpack("I", "metadata")
+                pair.append(m.take(text_length, "metadata"))
+            key = pair[0].decode("utf-8", errors="replace")
+            if key == DICOM_HEADER_KEY:
+                if any(k == DICOM_HEADER_KEY for k, _ in metadata):
+                    raise DamagedFile("two DICOM header blocks")
+                # Bytes, not text (section "DICOM header"): checked, shown by its counts.
+                metadata.append((key, split_dicom_header(pair[1])))
+            else:
                 # UTF-8 by the document; shown with replacement characters if not (it is not checked).
-                pair.append(m.take(text_length, "metadata").decode("utf-8", errors="replace"))
-            metadata.append(tuple(pair))
+                metadata.append((key, pair[1].decode("utf-8", errors="replace")))
         if m.left() != 0:
             raise DamagedFile("inconsistent metadata block")
     if f.left() != 0:
@@ -686,6 +713,10 @@ def print_header(h):
         print("residual_levels", h["residual_levels"])
         print("residual_bytes", len(h["residual_layer"]))
     for key, value in h["metadata"]:
+        if key == DICOM_HEADER_KEY:
+            mode, common, files = value
+            value = "%s, %d files, %d bytes common, %d per file in all" % (
+                ("full", "essential")[mode], len(files), len(common), sum(len(f) for f in files))
         print("metadata", json.dumps(key, ensure_ascii=False), json.dumps(value, ensure_ascii=False))
 
 

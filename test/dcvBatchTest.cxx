@@ -416,7 +416,66 @@ TEST_F(Batch, DicomSeriesAreItemsNamedByDirectoryAndSeriesInstanceUid)
                 file.header.metadata.end(),
                 std::make_pair(std::string("DICOM SeriesInstanceUID"), name.substr(name.rfind('_') + 1)));
     EXPECT_NE(stored, file.header.metadata.end()) << name;
+    // Every file's header, as compress keeps it (the 28 files, all of each).
+    const auto header = std::find_if(file.header.metadata.begin(), file.header.metadata.end(), [](const auto & kv) {
+      return kv.first == dcv::DicomHeaderKey;
+    });
+    ASSERT_NE(header, file.header.metadata.end()) << name;
+    const auto block = dcv::SplitDicomHeader(header->second, name);
+    EXPECT_EQ(block.mode, 0) << name;
+    EXPECT_EQ(block.files.size(), 28u) << name;
   }
+}
+
+TEST_F(Batch, DicomSeriesWithPixelDataCutShortFailAndTheOthersGoOn)
+{
+  const std::string series = "dicom-ct-brain-5mm";
+  if (!dcv::test::HaveData(series))
+  {
+    GTEST_SKIP() << "needs " << dcv::test::DataFile(series) << " (../shared/data is absent)";
+  }
+  fs::remove(m_Tree + "/c/broken.nrrd");
+  // cut/: one file cut to 400000 of its 531932 bytes; halved/: every file cut to half its length (a
+  // series of its own: another Series Instance UID).
+  fs::create_directories(m_Tree + "/dicom/cut");
+  fs::create_directories(m_Tree + "/dicom/halved");
+  std::string       uid;
+  const std::string other = "1.2.826.0.1.3680043.2.1125.99.2";
+  for (const auto & entry : fs::directory_iterator(dcv::test::DataFile(series)))
+  {
+    const std::string name = entry.path().filename().string();
+    for (const std::string & copy : { m_Tree + "/dicom/cut/" + name, m_Tree + "/dicom/halved/" + name })
+    {
+      fs::copy_file(entry.path(), copy);
+      fs::permissions(copy, fs::perms::owner_write, fs::perm_options::add);
+    }
+    uid = SeriesUid(entry.path().string());
+    SeriesUid(m_Tree + "/dicom/halved/" + name, other);
+    const std::string halved = FileBytes(m_Tree + "/dicom/halved/" + name);
+    std::ofstream(m_Tree + "/dicom/halved/" + name, std::ios::binary | std::ios::trunc)
+      << halved.substr(0, halved.size() / 2);
+  }
+  const std::string cut = FileBytes(m_Tree + "/dicom/cut/I140.dcm");
+  std::ofstream(m_Tree + "/dicom/cut/I140.dcm", std::ios::binary | std::ios::trunc) << cut.substr(0, 400000);
+
+  const Result r = RunDcv("batch " + m_Tree + " " + Path("out") + " --points 100 --jobs 2");
+  EXPECT_EQ(r.status, 1) << r.output;
+  EXPECT_TRUE(Contains(r.output, "2 of 6 items failed")) << r.output;
+  const auto summary = Summary(Path("out/batch-summary.csv"));
+  ASSERT_TRUE(summary.count("dicom_cut_" + uid)) << r.output;
+  ASSERT_TRUE(summary.count("dicom_halved_" + other)) << r.output;
+  const std::string cutStatus = summary.at("dicom_cut_" + uid)[6];
+  EXPECT_TRUE(Contains(cutStatus, "failed")) << cutStatus;
+  EXPECT_TRUE(Contains(cutStatus, "I140.dcm")) << cutStatus;
+  EXPECT_TRUE(Contains(cutStatus, "131930 bytes missing")) << cutStatus;
+  const std::string halvedStatus = summary.at("dicom_halved_" + other)[6];
+  EXPECT_TRUE(Contains(halvedStatus, "failed")) << halvedStatus;
+  EXPECT_TRUE(Contains(halvedStatus, "it is cut short")) << halvedStatus;
+  EXPECT_TRUE(Contains(halvedStatus, "bytes missing")) << halvedStatus;
+  EXPECT_FALSE(fs::exists(Path("out/dicom_cut_" + uid + ".dcv")));
+  EXPECT_FALSE(fs::exists(Path("out/dicom_halved_" + other + ".dcv")));
+  for (const auto & name : m_Good)
+    EXPECT_EQ(summary.at(name)[6], "ok") << name;
 }
 
 TEST(BatchResample, ATiltedSeriesFailsNamingTheOptionAndIsResampledWithIt)

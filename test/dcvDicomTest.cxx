@@ -19,6 +19,7 @@
 // refuses, with a message that says which and why, series made from it that are not a volume on a grid,
 // and dcv decompress --dicom gives back a valid derived series of the same study.
 #include "dcvDicomTestUtilities.h"
+#include "dcvFileFormat.h"
 #include "dcvTestUtilities.h"
 
 #include "itkGDCMImageIO.h"
@@ -30,6 +31,7 @@
 
 #include <array>
 #include <functional>
+#include <map>
 #include <sstream>
 
 namespace
@@ -165,6 +167,41 @@ TEST_F(DicomInput, RefusesAMissingSlice)
 {
   fs::remove(m_Series + "/I140.dcm");
   ExpectRefused({ "missing slice between slices", "a gap of 10 mm where slices are 5 mm apart" });
+}
+
+/** The first `bytes` bytes of `file`, written over it. */
+void
+CutShort(const std::string & file, std::size_t bytes)
+{
+  const std::string whole = dcv::test::FileBytes(file);
+  std::ofstream(file, std::ios::binary | std::ios::trunc) << whole.substr(0, std::min(bytes, whole.size()));
+}
+
+TEST_F(DicomInput, RefusesAFileWhosePixelDataIsCutShort)
+{
+  // 531932 bytes, the pixel data's 524288 from byte 7642: cut to 400000, 131930 of them are missing.
+  CutShort(m_Series + "/I140.dcm", 400000);
+  const std::vector<std::string> phrases{
+    "I140.dcm", "it is cut short", "pixel data is 524288 bytes", "131930 bytes missing"
+  };
+  ExpectRefused(phrases);
+  const Result r = RunDcv("convert " + m_Series + " " + Path("out.nrrd"));
+  EXPECT_EQ(r.status, 1) << r.output;
+  for (const auto & phrase : phrases)
+    EXPECT_NE(r.output.find(phrase), std::string::npos) << "missing '" << phrase << "' in: " << r.output;
+  EXPECT_FALSE(fs::exists(Path("out.nrrd")));
+}
+
+TEST_F(DicomInput, RefusesASeriesOfFilesCutToHalfTheirLength)
+{
+  for (const auto & entry : fs::directory_iterator(m_Series))
+    CutShort(entry.path().string(), 531932 / 2);
+  // 265966 bytes, about half of the pixel data's 524288 missing, whichever file is read first.
+  ExpectRefused({ "cannot read the DICOM file", "it is cut short", "pixel data is 524288 bytes", "bytes missing" });
+  const Result r = RunDcv("convert " + m_Series + " " + Path("out.nrrd"));
+  EXPECT_EQ(r.status, 1) << r.output;
+  EXPECT_NE(r.output.find("it is cut short"), std::string::npos) << r.output;
+  EXPECT_FALSE(fs::exists(Path("out.nrrd")));
 }
 
 TEST_F(DicomInput, RefusesUnevenSpacing)
@@ -632,6 +669,292 @@ TEST_F(GeneratedSeries, GantryTiltIsResampledOntoTheNormalOfTheOrientationWhenAs
   {
     EXPECT_EQ(DciodvfyErrors(Path("returned"), files), "");
   }
+}
+
+
+/** The attributes a lossy derived file changes (docs/dicom.md); every other public attribute of the
+ * original comes back with the same value. */
+const std::vector<DcmTagKey> Changed{ DCM_SOPInstanceUID,
+                                      DCM_SeriesInstanceUID,
+                                      DCM_ImageType,
+                                      DCM_LossyImageCompression,
+                                      DCM_LossyImageCompressionRatio,
+                                      DCM_LossyImageCompressionMethod,
+                                      DCM_DerivationDescription,
+                                      DCM_SourceImageSequence,
+                                      DCM_DerivationCodeSequence,
+                                      DCM_InstanceCreationDate,
+                                      DCM_InstanceCreationTime,
+                                      DCM_SeriesNumber,
+                                      DCM_SeriesDescription,
+                                      DCM_SoftwareVersions,
+                                      DCM_BitsStored,
+                                      DCM_HighBit,
+                                      DCM_RescaleIntercept,
+                                      DCM_SmallestImagePixelValue,
+                                      DCM_LargestImagePixelValue,
+                                      DCM_SmallestPixelValueInSeries,
+                                      DCM_LargestPixelValueInSeries,
+                                      DCM_PixelPaddingValue,
+                                      DCM_PixelPaddingRangeLimit,
+                                      DCM_PixelData };
+
+/** The ISO 2022 bytes of PS3.5 Annex H's example name "Yamada^Tarou=山田^太郎=やまだ^たろう". */
+const std::string Yamada = "Yamada^Tarou=\x1b$B;3ED\x1b(B^\x1b$BB@O:\x1b(B=\x1b$B$d$^$@\x1b(B^\x1b$B$?$m$&\x1b(B";
+
+/** Copies of the dev series, few slices, edited per file; compressed, and returned as DICOM. */
+class DicomHeaders : public DicomInput
+{
+protected:
+  /** Keeps the `n` slices lowest in z (a shorter series, quicker to code), sorted: m_Files. */
+  void
+  KeepSlices(std::size_t n)
+  {
+    std::vector<std::pair<double, std::string>> byZ;
+    for (const auto & entry : fs::directory_iterator(m_Series))
+    {
+      const std::string name = entry.path().filename().string();
+      const std::string position = Get(name, DCM_ImagePositionPatient);
+      byZ.emplace_back(std::stod(position.substr(position.rfind('\\') + 1)), name);
+    }
+    std::sort(byZ.begin(), byZ.end());
+    m_Files.clear();
+    for (std::size_t i = 0; i < byZ.size(); ++i)
+    {
+      if (i < n)
+        m_Files.push_back(byZ[i].second);
+      else
+        fs::remove(m_Series + "/" + byZ[i].second);
+    }
+  }
+  /** Sets tags of one file of the copy at once (raw bytes: no character set conversion). */
+  void
+  EditFile(const std::string & file, const std::vector<std::pair<DcmTagKey, std::string>> & edits) const
+  {
+    DcmFileFormat dicom;
+    ASSERT_TRUE(dicom.loadFile((m_Series + "/" + file).c_str()).good()) << file;
+    ASSERT_TRUE(dicom.loadAllDataIntoMemory().good()) << file;
+    for (const auto & [key, value] : edits)
+      ASSERT_TRUE(dicom.getDataset()->putAndInsertString(key, value.c_str()).good()) << value;
+    ASSERT_TRUE(dicom.saveFile((m_Series + "/" + file).c_str()).good()) << file;
+  }
+  /** compress (at `bpv`), decompress --dicom into "returned"; the directory. */
+  std::string
+  RoundTrip(const std::string & extra = "", const std::string & bpv = "0.125")
+  {
+    const Result c = RunDcv("compress " + m_Series + " " + Path("ct.dcv") + " --bpv " + bpv + extra);
+    EXPECT_EQ(c.status, 0) << c.output;
+    m_Compressed = c.output;
+    EXPECT_NE(c.output.find("DICOM header: "), std::string::npos) << c.output;
+    const std::string out = Path("returned");
+    const Result      d = RunDcv("decompress " + Path("ct.dcv") + " " + out + " --dicom");
+    EXPECT_EQ(d.status, 0) << d.output;
+    return out;
+  }
+  /** Every returned file: valid (dciodvfy), its original (same position) referenced as its source, every
+   * public attribute of the original there with the same value (the changed ones apart), its private
+   * ones too (`privates`), the text of `texts` byte for byte. */
+  void
+  ExpectTrueToTheOriginals(const std::string & out, const std::vector<DcmTagKey> & texts, bool privates = true)
+  {
+    std::size_t files = 0;
+    if (HaveDciodvfy())
+    {
+      EXPECT_EQ(DciodvfyErrors(out, files), "");
+    }
+    else
+    {
+      std::cout << "dciodvfy (dicom3tools) is not installed: the files were not validated" << std::endl;
+    }
+    std::map<std::string, std::string> byPosition;
+    for (const auto & f : m_Files)
+      byPosition[Get(f, DCM_ImagePositionPatient)] = f;
+    files = 0;
+    for (const auto & entry : fs::directory_iterator(out))
+    {
+      ++files;
+      const std::string name = entry.path().filename().string();
+      DcmFileFormat     returned, original;
+      ASSERT_TRUE(returned.loadFile(entry.path().string().c_str()).good()) << name;
+      DcmDataset & r = *returned.getDataset();
+      OFString     position;
+      r.findAndGetOFStringArray(DCM_ImagePositionPatient, position);
+      ASSERT_TRUE(byPosition.count(position.c_str())) << name << " at " << position;
+      const std::string source = byPosition[position.c_str()];
+      ASSERT_TRUE(original.loadFile((m_Series + "/" + source).c_str()).good()) << source;
+      DcmDataset & o = *original.getDataset();
+      std::size_t  originalPrivates = 0, returnedPrivates = 0;
+      for (unsigned long i = 0; i < o.card(); ++i)
+      {
+        DcmElement *    e = o.getElement(i);
+        const DcmTagKey t = e->getTag();
+        if (t.getGroup() & 1)
+        {
+          ++originalPrivates;
+          continue;
+        }
+        if (std::find(Changed.begin(), Changed.end(), t) != Changed.end())
+          continue;
+        DcmElement * same = nullptr;
+        EXPECT_TRUE(r.findAndGetElement(t, same).good())
+          << name << ": " << t.toString() << " " << DcmTag(t).getTagName() << " of " << source << " is missing";
+        if (same)
+          EXPECT_EQ(e->compare(*same), 0)
+            << name << ": " << t.toString() << " " << DcmTag(t).getTagName() << " differs from " << source;
+      }
+      for (unsigned long i = 0; i < r.card(); ++i)
+        returnedPrivates += (r.getElement(i)->getTag().getGroup() & 1) ? 1 : 0;
+      if (privates)
+        EXPECT_EQ(returnedPrivates, originalPrivates) << name;
+      for (const auto & t : texts)
+      {
+        OFString a, b;
+        o.findAndGetOFStringArray(t, a);
+        r.findAndGetOFStringArray(t, b);
+        EXPECT_EQ(std::string(b.c_str()), std::string(a.c_str())) << name << ": " << DcmTag(t).getTagName();
+      }
+      // Derived from its original, lossy.
+      OFString value;
+      r.findAndGetOFStringArray(DCM_ImageType, value);
+      EXPECT_EQ(std::string(value.c_str()).rfind("DERIVED\\SECONDARY", 0), 0u) << value;
+      r.findAndGetOFString(DCM_LossyImageCompression, value);
+      EXPECT_EQ(value, "01");
+      DcmItem * item = nullptr;
+      ASSERT_TRUE(r.findAndGetSequenceItem(DCM_SourceImageSequence, item, 0).good()) << name;
+      EXPECT_TRUE(item->findAndGetOFString(DCM_ReferencedSOPInstanceUID, value).good()) << name;
+      OFString originalUid, originalClass;
+      o.findAndGetOFString(DCM_SOPInstanceUID, originalUid);
+      o.findAndGetOFString(DCM_SOPClassUID, originalClass);
+      EXPECT_EQ(value, originalUid) << name << " should name " << source;
+      item->findAndGetOFString(DCM_ReferencedSOPClassUID, value);
+      EXPECT_EQ(value, originalClass) << name;
+      DcmItem * code = nullptr;
+      ASSERT_TRUE(item->findAndGetSequenceItem(DCM_PurposeOfReferenceCodeSequence, code, 0).good()) << name;
+      code->findAndGetOFString(DCM_CodeValue, value);
+      EXPECT_EQ(value, "121320");
+      ASSERT_TRUE(r.findAndGetSequenceItem(DCM_DerivationCodeSequence, code, 0).good()) << name;
+      code->findAndGetOFString(DCM_CodeValue, value);
+      EXPECT_EQ(value, "113040");
+      r.findAndGetOFString(DCM_SOPInstanceUID, value);
+      EXPECT_NE(value, originalUid);
+    }
+    EXPECT_EQ(files, m_Files.size());
+  }
+  std::vector<std::string> m_Files;
+  std::string              m_Compressed;
+};
+
+TEST_F(DicomHeaders, Latin1NamesComeBackByteForByteWithTheWholeHeader)
+{
+  KeepSlices(4);
+  for (const auto & f : m_Files)
+  {
+    EditFile(f,
+             { { DCM_SpecificCharacterSet, "ISO_IR 100" },
+               { DCM_PatientName, "M\xfcller^J\xfcrgen" },
+               { DCM_StudyDescription,
+                 "Sch\xe4"
+                 "del nativ" } });
+  }
+  const std::string out = RoundTrip();
+  ExpectTrueToTheOriginals(out, { DCM_SpecificCharacterSet, DCM_PatientName, DCM_StudyDescription });
+  // The header's cost, printed by info too.
+  const Result info = RunDcv("info " + Path("ct.dcv"));
+  EXPECT_NE(info.output.find("DICOM header: "), std::string::npos) << info.output;
+  EXPECT_NE(info.output.find("4 files, full"), std::string::npos) << info.output;
+}
+
+TEST_F(DicomHeaders, Utf8AndIso2022NamesComeBackByteForByte)
+{
+  KeepSlices(4);
+  // Files of one series that disagree on their character set: each keeps its own.
+  for (std::size_t i = 0; i < m_Files.size(); ++i)
+  {
+    if (i % 2 == 0)
+      EditFile(m_Files[i],
+               { { DCM_SpecificCharacterSet, "ISO_IR 192" },
+                 { DCM_PatientName,
+                   "\xe1\xbd\x88\xce\xb4\xcf\x85\xcf\x83\xcf\x83\xce\xb5\xcf\x8d\xcf\x82^"
+                   "\xce\x9c\xe1\xbf\x86\xcf\x84\xce\xb9\xcf\x82=\xe7\x8e\x8b^\xe5\xb0\x8f\xe6\x98\x8e" } });
+    else
+      EditFile(m_Files[i], { { DCM_SpecificCharacterSet, "\\ISO 2022 IR 87" }, { DCM_PatientName, Yamada } });
+  }
+  const std::string out = RoundTrip();
+  ExpectTrueToTheOriginals(out, { DCM_SpecificCharacterSet, DCM_PatientName });
+}
+
+TEST_F(DicomHeaders, TwoWindowsAndPerSliceValuesAreKept)
+{
+  KeepSlices(4);
+  for (std::size_t i = 0; i < m_Files.size(); ++i)
+  {
+    EditFile(m_Files[i],
+             { { DCM_WindowCenter, "40\\400" },
+               { DCM_WindowWidth, "80\\2000" },
+               { DCM_WindowCenterWidthExplanation, "BRAIN\\BONE" },
+               { DCM_ImageComments, "slice " + std::to_string(i + 1) },
+               { DCM_ExposureTime, std::to_string(1000 + 10 * i) } });
+  }
+  const std::string out = RoundTrip();
+  ExpectTrueToTheOriginals(out,
+                           { DCM_WindowCenter,
+                             DCM_WindowWidth,
+                             DCM_WindowCenterWidthExplanation,
+                             DCM_ImageComments,
+                             DCM_ExposureTime,
+                             DCM_ConvolutionKernel,
+                             DCM_ProtocolName });
+}
+
+TEST_F(DicomHeaders, EssentialKeepsAValidSeriesInFewerBytes)
+{
+  KeepSlices(4);
+  const std::string out = RoundTrip(" --dicom-header essential");
+  const auto        bytes = [](const std::string & printed) {
+    const auto at = printed.find("DICOM header: ");
+    return at == std::string::npos ? 0ul : std::stoul(printed.substr(at + 14));
+  };
+  const std::size_t essential = bytes(m_Compressed);
+  std::size_t       files = 0;
+  if (HaveDciodvfy())
+    EXPECT_EQ(DciodvfyErrors(out, files), "");
+  EXPECT_EQ(Get(m_Files[0], DCM_PatientName), [&] {
+    DcmFileFormat f;
+    EXPECT_TRUE(f.loadFile((out + "/IM000001.dcm").c_str()).good());
+    OFString v;
+    f.getDataset()->findAndGetOFStringArray(DCM_PatientName, v);
+    return std::string(v.c_str());
+  }());
+  const Result full = RunDcv("compress " + m_Series + " " + Path("full.dcv") + " --bpv 0.125 -f");
+  ASSERT_EQ(full.status, 0) << full.output;
+  EXPECT_LT(essential, bytes(full.output));
+  // A budget the header does not fit: refused before encoding, with what it needs and the option.
+  const Result tiny = RunDcv("compress " + m_Series + " " + Path("tiny.dcv") + " --bpv 0.005");
+  EXPECT_EQ(tiny.status, 1) << tiny.output;
+  EXPECT_NE(tiny.output.find("its DICOM header (full) takes"), std::string::npos) << tiny.output;
+  EXPECT_NE(tiny.output.find("--dicom-header essential needs"), std::string::npos) << tiny.output;
+  EXPECT_FALSE(fs::exists(Path("tiny.dcv")));
+}
+
+TEST_F(DicomHeaders, AFileWithoutTheHeaderBlockStillGivesADerivedSeries)
+{
+  KeepSlices(4);
+  const Result c = RunDcv("compress " + m_Series + " " + Path("ct.dcv") + " --bpv 0.125");
+  ASSERT_EQ(c.status, 0) << c.output;
+  // The file as it was before the header block: the fixed list of attributes alone.
+  auto   file = dcv::ReadCompressedFile(Path("ct.dcv"));
+  auto & metadata = file.header.metadata;
+  metadata.erase(
+    std::remove_if(metadata.begin(), metadata.end(), [](const auto & kv) { return kv.first == dcv::DicomHeaderKey; }),
+    metadata.end());
+  dcv::WriteFileAtomically(Path("old.dcv"), dcv::SerializeFile(file.header, file.payload));
+  EXPECT_EQ(RunDcv("info " + Path("old.dcv")).output.find("DICOM header: "), std::string::npos);
+  const Result d = RunDcv("decompress " + Path("old.dcv") + " " + Path("returned") + " --dicom");
+  ASSERT_EQ(d.status, 0) << d.output;
+  std::size_t files = 0;
+  if (HaveDciodvfy())
+    EXPECT_EQ(DciodvfyErrors(Path("returned"), files), "");
+  EXPECT_EQ(std::distance(fs::directory_iterator(Path("returned")), fs::directory_iterator()), 4);
 }
 
 } // namespace

@@ -381,6 +381,45 @@ TEST(FileFormat, MetadataIsDeflatedWhenThatIsSmaller)
   EXPECT_NE(ParseError(damaged).find("metadata"), std::string::npos) << ParseError(damaged);
 }
 
+TEST(FileFormat, DicomHeaderBlockRoundTripsAndADamagedOneIsRefused)
+{
+  DicomHeaderBlock block;
+  block.mode = 1;
+  block.common = std::string("\x08\x00\x60\x00"
+                             "CS\x02\x00"
+                             "CT",
+                             10);
+  block.files = { std::string("\x20\x00\x13\x00"
+                              "IS\x02\x00"
+                              "1 ",
+                              10),
+                  "" };
+  FileHeader h = SampleHeader(true);
+  h.metadata.emplace_back(DicomHeaderKey, JoinDicomHeader(block));
+  const auto           bytes = SerializeFile(h, { 1, 2, 3 });
+  FileHeader           back;
+  std::vector<uint8_t> payload;
+  ParseFile(bytes, "x.dcv", back, payload);
+  ASSERT_EQ(back.metadata, h.metadata);
+  const DicomHeaderBlock parsed = SplitDicomHeader(back.metadata.back().second, "x.dcv");
+  EXPECT_EQ(parsed.mode, 1);
+  EXPECT_EQ(parsed.common, block.common);
+  EXPECT_EQ(parsed.files, block.files);
+  // A block whose lengths do not add up, under a valid checksum, and one of an unknown version.
+  std::string value = JoinDicomHeader(block);
+  for (const std::string & damaged : { value.substr(0, value.size() - 1), value + "x", "\x02" + value.substr(1) })
+  {
+    h.metadata.back().second = damaged;
+    const std::string error = ParseError(SerializeFile(h, { 1, 2, 3 }));
+    EXPECT_EQ(error.rfind("x.dcv: ", 0), 0u) << error;
+    EXPECT_NE(error.find("DICOM header"), std::string::npos) << error;
+  }
+  // Two blocks.
+  h.metadata.back().second = value;
+  h.metadata.emplace_back(DicomHeaderKey, value);
+  EXPECT_NE(ParseError(SerializeFile(h, { 1, 2, 3 })).find("two DICOM header blocks"), std::string::npos);
+}
+
 TEST(FileFormat, AxisDirectionsTakeOneByte)
 {
   // Every flip and swap of the axes (48 signed permutations, identity aside) in one byte, exactly.

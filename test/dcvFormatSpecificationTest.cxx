@@ -314,7 +314,22 @@ protected:
     }
     std::vector<std::string> metadata;
     for (const auto & kv : h.metadata)
-      metadata.push_back(Json(kv.first) + " " + Json(kv.second));
+    {
+      if (kv.first == DicomHeaderKey)
+      {
+        // Bytes: the reference decoder checks the block's structure and prints its mode and counts.
+        const DicomHeaderBlock block = SplitDicomHeader(kv.second, path);
+        std::size_t            own = 0;
+        for (const auto & f : block.files)
+          own += f.size();
+        metadata.push_back(Json(kv.first) + " " +
+                           Json(std::string(block.mode == 0 ? "full" : "essential") + ", " +
+                                std::to_string(block.files.size()) + " files, " + std::to_string(block.common.size()) +
+                                " bytes common, " + std::to_string(own) + " per file in all"));
+      }
+      else
+        metadata.push_back(Json(kv.first) + " " + Json(kv.second));
+    }
     EXPECT_EQ(r.metadata, metadata);
 
     ASSERT_EQ(r.points.size(), a.points.size());
@@ -390,6 +405,20 @@ TEST_F(FormatSpecification, DirectionAndMetadata)
                  { "", "an empty key" },
                  { "empty value", "" } };
   ExpectAgreement(WriteDcv("oriented.dcv", h, Phantom(GridSize{ 24, 30, 21 }, Mode::Best, 300, -3.5, 0.5)));
+  // A DICOM header block (bytes: a NUL, a quote, a byte that is not UTF-8) among the pairs.
+  DicomHeaderBlock block;
+  block.common = std::string("\x08\x00\x60\x00"
+                             "CS\x02\x00"
+                             "CT",
+                             10);
+  block.files = { std::string("\x10\x00\x10\x00"
+                              "PN\x04\x00"
+                              "\xe4\"^ ",
+                              12),
+                  "" };
+  h.metadata.emplace_back(DicomHeaderKey, JoinDicomHeader(block));
+  ExpectAgreement(WriteDcv("dicom.dcv", h, Phantom(GridSize{ 24, 30, 21 }, Mode::Best, 300, -3.5, 0.5)));
+  h.metadata.pop_back();
   // Flipped and swapped axes (LPS against RAS): the one-byte direction code.
   h.direction = { 0, -1, 0, -1, 0, 0, 0, 0, 1 };
   ExpectAgreement(WriteDcv("flipped.dcv", h, Phantom(GridSize{ 24, 30, 21 }, Mode::Best, 300, -3.5, 0.5)));

@@ -594,11 +594,80 @@ ParseFile(const std::vector<uint8_t> & bytes, const std::string & name, FileHead
     {
       throw FormatError(name + ": inconsistent metadata block");
     }
+    // The DICOM header block's own structure, so that a reader of its elements gets whole parts.
+    bool dicomHeader = false;
+    for (const auto & kv : h.metadata)
+    {
+      if (kv.first == DicomHeaderKey)
+      {
+        if (dicomHeader)
+          throw FormatError(name + ": two DICOM header blocks");
+        dicomHeader = true;
+        SplitDicomHeader(kv.second, name);
+      }
+    }
   }
   if (r.Left() != 0)
   {
     throw FormatError(name + ": " + std::to_string(r.Left()) + " unexpected bytes before the checksum");
   }
+}
+
+std::string
+JoinDicomHeader(const DicomHeaderBlock & block)
+{
+  if (block.files.empty() || block.files.size() > 65535 || block.mode > 1)
+  {
+    throw std::invalid_argument("a DICOM header block holds 1 to 65535 files, mode 0 or 1");
+  }
+  Writer w;
+  w.U8(DicomHeaderBlock::Version);
+  w.U8(block.mode);
+  w.U32(uint32_t(block.files.size()));
+  const auto part = [&w](const std::string & p) {
+    if (p.size() > 0xffffffffu)
+      throw std::invalid_argument("a DICOM header part exceeds 4 GiB");
+    w.U32(uint32_t(p.size()));
+    w.Bytes(reinterpret_cast<const uint8_t *>(p.data()), p.size());
+  };
+  part(block.common);
+  for (const auto & f : block.files)
+    part(f);
+  return std::string(w.bytes.begin(), w.bytes.end());
+}
+
+DicomHeaderBlock
+SplitDicomHeader(const std::string & value, const std::string & name)
+{
+  const std::vector<uint8_t> bytes(value.begin(), value.end());
+  Reader                     r(bytes, bytes.size(), name);
+  DicomHeaderBlock           block;
+  const uint8_t              version = r.U8("DICOM header");
+  if (version != DicomHeaderBlock::Version)
+  {
+    throw FormatError(name + ": DICOM header block of unknown version " + std::to_string(version));
+  }
+  block.mode = r.U8("DICOM header");
+  const uint32_t files = r.U32("DICOM header");
+  if (block.mode > 1 || files < 1 || files > 65535 || files > r.Left() / 4)
+  {
+    throw FormatError(name + ": inconsistent DICOM header block");
+  }
+  const auto part = [&]() {
+    const uint32_t n = r.U32("DICOM header");
+    r.Need(n, "DICOM header");
+    std::string p(value.data() + r.Position(), n);
+    r.Skip(n);
+    return p;
+  };
+  block.common = part();
+  for (uint32_t i = 0; i < files; ++i)
+    block.files.push_back(part());
+  if (r.Left() != 0)
+  {
+    throw FormatError(name + ": inconsistent DICOM header block");
+  }
+  return block;
 }
 
 std::vector<uint8_t>

@@ -16,6 +16,7 @@
  *
  *=========================================================================*/
 #include "dcvDicomWriter.h"
+#include "dcvDicomHeader.h"
 #include "dcvTools.h"
 #include "dcvVersion.h"
 
@@ -116,12 +117,199 @@ KeepDecodedRange(PixelEncoding & e, double lo, double hi)
 }
 
 void
-Put(DcmDataset & d, const DcmTagKey & key, const std::string & value)
+Put(DcmItem & d, const DcmTagKey & key, const std::string & value)
 {
   const OFCondition c = d.putAndInsertString(key, value.c_str());
   if (c.bad())
   {
     throw Failure(std::string("cannot set a DICOM attribute: ") + c.text());
+  }
+}
+
+std::string
+Get(DcmItem & d, const DcmTagKey & key)
+{
+  OFString value;
+  if (d.findAndGetOFStringArray(key, value).bad())
+    return "";
+  return value.c_str();
+}
+
+std::vector<std::string>
+Values(const std::string & text)
+{
+  std::vector<std::string> values;
+  std::stringstream        in(text);
+  for (std::string v; std::getline(in, v, '\\');)
+    values.push_back(v);
+  return values;
+}
+
+std::string
+Joined(const std::vector<std::string> & values)
+{
+  std::string text;
+  for (std::size_t i = 0; i < values.size(); ++i)
+    text += (i ? "\\" : "") + values[i];
+  return text;
+}
+
+/** Replaces the sequence `tag` by one with a single item of a code (CodeValue, scheme, meaning), in `item`
+ * when given. */
+DcmItem *
+PutCodeItem(DcmItem & d, const DcmTagKey & sequence, const char * value, const char * scheme, const char * meaning)
+{
+  d.findAndDeleteElement(sequence);
+  DcmItem * item = nullptr;
+  if (d.findOrCreateSequenceItem(sequence, item, -2).bad() || item == nullptr)
+  {
+    throw Failure("cannot set a DICOM sequence");
+  }
+  Put(*item, DCM_CodeValue, value);
+  Put(*item, DCM_CodingSchemeDesignator, scheme);
+  Put(*item, DCM_CodeMeaning, meaning);
+  return item;
+}
+
+/** `text` and `suffix` within `limit` bytes: the text shortened (at a character boundary of UTF-8, and
+ * never inside ISO 2022 escapes: such a text keeps its bytes and loses the suffix). */
+std::string
+WithSuffix(const std::string & text, const std::string & suffix, std::size_t limit, bool utf8)
+{
+  if (text.size() + suffix.size() <= limit)
+    return text + suffix;
+  if (text.find('\x1b') != std::string::npos)
+    return text;
+  std::size_t keep = limit > suffix.size() ? limit - suffix.size() : 0;
+  while (utf8 && keep > 0 && keep < text.size() && (uint8_t(text[keep]) & 0xc0) == 0x80)
+    --keep;
+  return text.substr(0, keep) + suffix;
+}
+
+/** The changes that make an original file's header that of its lossy derived copy (docs/dicom.md):
+ * new SOP Instance and Series Instance UIDs, Image Type DERIVED\\SECONDARY, lossy compression, derivation
+ * and its codes, the source image, instance creation, series number and description, software
+ * versions, the pixel module as stored. Everything else stays as the original has it, byte for byte. */
+/** The type 2 attributes (and the conditional ones the series' own writer path sets) an original lacks,
+ * empty: a derived series is valid even where its original was not. Present ones are kept as they are. */
+void
+CompleteType2(DcmDataset & ds, int32_t z)
+{
+  const auto absent = [&ds](const DcmTagKey & key) { return !ds.tagExists(key); };
+  for (const DcmTagKey & key : { DCM_PatientName,
+                                 DCM_PatientID,
+                                 DCM_PatientBirthDate,
+                                 DCM_PatientSex,
+                                 DCM_StudyDate,
+                                 DCM_StudyTime,
+                                 DCM_ReferringPhysicianName,
+                                 DCM_StudyID,
+                                 DCM_AccessionNumber,
+                                 DCM_PositionReferenceIndicator,
+                                 DCM_Manufacturer })
+  {
+    if (absent(key))
+      Put(ds, key, "");
+  }
+  if (absent(DCM_InstanceNumber))
+    Put(ds, DCM_InstanceNumber, std::to_string(z + 1));
+  const std::string sopClass = Get(ds, DCM_SOPClassUID);
+  const bool        ct = sopClass == UID_CTImageStorage;
+  if (absent(DCM_Laterality) && (!ct || absent(DCM_BodyPartExamined)))
+    Put(ds, DCM_Laterality, ""); // type 2C: a paired body part (or one not known) needs it
+  if (ct)
+  {
+    for (const DcmTagKey & key : { DCM_KVP, DCM_AcquisitionNumber, DCM_PatientPosition })
+    {
+      if (absent(key))
+        Put(ds, key, "");
+    }
+  }
+  if (sopClass == UID_SecondaryCaptureImageStorage)
+  {
+    if (absent(DCM_ConversionType))
+      Put(ds, DCM_ConversionType, "WSD");
+    if (absent(DCM_PatientOrientation))
+      Put(ds, DCM_PatientOrientation, "");
+  }
+}
+
+void
+Derive(DcmDataset & ds, const std::string & series, const std::string & now, const std::string & derivation,
+       double ratio, const PixelEncoding & enc, int32_t columns, int32_t rows, const std::string & software)
+{
+  const std::string sopClass = Get(ds, DCM_SOPClassUID);
+  const std::string sopInstance = Get(ds, DCM_SOPInstanceUID);
+  Put(ds, DCM_SOPInstanceUID, NewUid());
+  Put(ds, DCM_SeriesInstanceUID, series);
+  auto type = Values(Get(ds, DCM_ImageType));
+  type.resize(std::max<std::size_t>(type.size(), 2));
+  type[0] = "DERIVED";
+  type[1] = "SECONDARY";
+  Put(ds, DCM_ImageType, Joined(type));
+  // An earlier lossy compression keeps its values; this one adds its own (PS3.3 C.7.6.1.1.5).
+  std::string ratioText = Decimal(ratio), method = "DCV";
+  if (Get(ds, DCM_LossyImageCompression) == "01")
+  {
+    const std::string earlierRatio = Get(ds, DCM_LossyImageCompressionRatio);
+    const std::string earlierMethod = Get(ds, DCM_LossyImageCompressionMethod);
+    if (!earlierRatio.empty() && !earlierMethod.empty())
+    {
+      ratioText = earlierRatio + "\\" + ratioText;
+      method = earlierMethod + "\\" + method;
+    }
+  }
+  Put(ds, DCM_LossyImageCompression, "01");
+  Put(ds, DCM_LossyImageCompressionRatio, ratioText);
+  Put(ds, DCM_LossyImageCompressionMethod, method);
+  Put(ds, DCM_DerivationDescription, derivation);
+  PutCodeItem(ds, DCM_DerivationCodeSequence, "113040", "DCM", "Lossy Compression");
+  ds.findAndDeleteElement(DCM_SourceImageSequence);
+  DcmItem * source = nullptr;
+  if (ds.findOrCreateSequenceItem(DCM_SourceImageSequence, source, -2).bad() || source == nullptr)
+  {
+    throw Failure("cannot set a DICOM sequence");
+  }
+  Put(*source, DCM_ReferencedSOPClassUID, sopClass);
+  Put(*source, DCM_ReferencedSOPInstanceUID, sopInstance);
+  PutCodeItem(*source, DCM_PurposeOfReferenceCodeSequence, "121320", "DCM", "Uncompressed predecessor");
+  Put(ds, DCM_InstanceCreationDate, now.substr(0, 8));
+  Put(ds, DCM_InstanceCreationTime, now.substr(8));
+  const std::string number = Get(ds, DCM_SeriesNumber);
+  Put(ds, DCM_SeriesNumber, std::to_string((number.empty() ? 0 : std::stoi(number)) + 9000));
+  Put(ds,
+      DCM_SeriesDescription,
+      WithSuffix(Get(ds, DCM_SeriesDescription), " dcv lossy", 64, Get(ds, DCM_SpecificCharacterSet) == "ISO_IR 192"));
+  const std::string versions = Get(ds, DCM_SoftwareVersions);
+  Put(ds, DCM_SoftwareVersions, versions.empty() ? software : versions + "\\" + software);
+  // The pixel module as the decoded values are stored; values in stored units of the original pixels go.
+  Put(ds, DCM_SamplesPerPixel, "1");
+  Put(ds, DCM_PhotometricInterpretation, "MONOCHROME2");
+  Put(ds, DCM_Rows, std::to_string(rows));
+  Put(ds, DCM_Columns, std::to_string(columns));
+  Put(ds, DCM_BitsAllocated, "16");
+  Put(ds, DCM_BitsStored, std::to_string(enc.bitsStored));
+  Put(ds, DCM_HighBit, std::to_string(enc.bitsStored - 1));
+  Put(ds, DCM_PixelRepresentation, enc.isSigned ? "1" : "0");
+  Put(ds, DCM_RescaleIntercept, Decimal(enc.intercept));
+  Put(ds, DCM_RescaleSlope, Decimal(enc.slope));
+  for (const DcmTagKey & gone : { DCM_SmallestImagePixelValue,
+                                  DCM_LargestImagePixelValue,
+                                  DCM_SmallestPixelValueInSeries,
+                                  DCM_LargestPixelValueInSeries,
+                                  DCM_PixelPaddingValue,
+                                  DCM_PixelPaddingRangeLimit,
+                                  DCM_PlanarConfiguration,
+                                  DCM_NumberOfFrames })
+  {
+    ds.findAndDeleteElement(gone);
+  }
+  // Private pixel data (odd groups 7F01-7FFF) describes pixels the decoded ones are not: it goes.
+  for (unsigned long i = ds.card(); i-- > 0;)
+  {
+    const DcmTagKey t = ds.getElement(i)->getTag();
+    if ((t.getGroup() & 1) && (t.getGroup() >> 8) == 0x7f)
+      delete ds.remove(i);
   }
 }
 } // namespace
@@ -222,6 +410,10 @@ WriteDicomSeries(const FileHeader & header, std::size_t compressedBytes,
   const double originalBytes = voxels * (enc.bitsStored > 8 ? 2.0 : 1.0);
   const double ratio = originalBytes / double(std::max<std::size_t>(1, compressedBytes));
 
+  // The original files' headers (a .dcv file of a DICOM series on its own grid): one per slice.
+  const StoredDicomHeaders stored = ParseDicomHeaders(header, "the .dcv file");
+  const bool               headers = !stored.files.empty() && stored.files.size() == std::size_t(nz);
+
   const fs::path temporary = parent / (".dcv-" + std::to_string(::getpid()) + "-" + target.filename().string());
   fs::remove_all(temporary);
   fs::create_directories(temporary);
@@ -232,82 +424,90 @@ WriteDicomSeries(const FileHeader & header, std::size_t compressedBytes,
     const auto &        d = header.direction; // row major: column j is axis j's direction
     for (int32_t z = 0; z < nz; ++z)
     {
-      DcmFileFormat file;
+      DcmFileFormat file(headers ? stored.files[std::size_t(z)].get() : nullptr);
       DcmDataset &  ds = *file.getDataset();
-      Put(ds, DCM_SOPClassUID, ct ? UID_CTImageStorage : UID_SecondaryCaptureImageStorage);
-      Put(ds, DCM_SOPInstanceUID, NewUid());
-      Put(ds, DCM_StudyInstanceUID, study);
-      Put(ds, DCM_SeriesInstanceUID, series);
-      Put(ds, DCM_FrameOfReferenceUID, frame);
-      Put(ds, DCM_PositionReferenceIndicator, "");
-      Put(ds, DCM_PatientName, get("PatientName", fromDicom ? "" : "DCV^PLACEHOLDER"));
-      Put(ds, DCM_PatientID, get("PatientID", fromDicom ? "" : "DCV-" + series.substr(series.size() - 8)));
-      Put(ds, DCM_PatientBirthDate, get("PatientBirthDate"));
-      Put(ds, DCM_PatientSex, get("PatientSex"));
-      Put(ds, DCM_StudyDate, get("StudyDate", now.substr(0, 8)));
-      Put(ds, DCM_StudyTime, get("StudyTime", now.substr(8)));
-      Put(ds, DCM_ReferringPhysicianName, get("ReferringPhysicianName"));
-      Put(ds, DCM_StudyID, get("StudyID"));
-      Put(ds, DCM_AccessionNumber, get("AccessionNumber"));
-      if (!get("StudyDescription").empty() || !fromDicom)
-        Put(ds, DCM_StudyDescription, get("StudyDescription", "Not from DICOM: placeholder study (dcv)"));
-      Put(ds, DCM_Modality, get("Modality", "OT"));
-      if (!get("BodyPartExamined").empty())
-        Put(ds, DCM_BodyPartExamined, get("BodyPartExamined"));
-      if (!ct || get("BodyPartExamined").empty())
-        Put(ds, DCM_Laterality, ""); // type 2C: a paired body part (or one not known) needs it
-      Put(ds, DCM_SeriesNumber, std::to_string(std::stoi(get("SeriesNumber", "0")) + 9000));
-      Put(ds, DCM_SeriesDescription, (get("SeriesDescription") + " dcv lossy").substr(0, 64));
-      Put(ds, DCM_Manufacturer, get("Manufacturer"));
-      if (!get("ManufacturerModelName").empty())
-        Put(ds, DCM_ManufacturerModelName, get("ManufacturerModelName"));
-      if (!get("InstitutionName").empty())
-        Put(ds, DCM_InstitutionName, get("InstitutionName"));
-      Put(ds, DCM_SoftwareVersions, std::string("dcv ") + ModuleVersion);
-      Put(ds, DCM_InstanceNumber, std::to_string(z + 1));
-      Put(ds, DCM_ImageType, ct ? "DERIVED\\SECONDARY\\AXIAL" : "DERIVED\\SECONDARY");
-      Put(ds, DCM_DerivationDescription, derivation);
-      Put(ds, DCM_LossyImageCompression, "01");
-      Put(ds, DCM_LossyImageCompressionRatio, Decimal(ratio));
-      Put(ds, DCM_LossyImageCompressionMethod, "DCV");
-      Put(ds, DCM_ContentDate, now.substr(0, 8));
-      Put(ds, DCM_ContentTime, now.substr(8));
-      if (!ct)
+      if (headers)
       {
-        Put(ds, DCM_ConversionType, "WSD");
-        Put(ds, DCM_PatientOrientation, "");
+        Derive(ds, series, now, derivation, ratio, enc, nx, ny, std::string("dcv ") + ModuleVersion);
+        CompleteType2(ds, z);
       }
       else
       {
-        Put(ds, DCM_KVP, get("KVP"));
-        Put(ds, DCM_PatientPosition, get("PatientPosition")); // type 2C for CT
-        Put(ds, DCM_AcquisitionNumber, "");
+        Put(ds, DCM_SOPClassUID, ct ? UID_CTImageStorage : UID_SecondaryCaptureImageStorage);
+        Put(ds, DCM_SOPInstanceUID, NewUid());
+        Put(ds, DCM_StudyInstanceUID, study);
+        Put(ds, DCM_SeriesInstanceUID, series);
+        Put(ds, DCM_FrameOfReferenceUID, frame);
+        Put(ds, DCM_PositionReferenceIndicator, "");
+        Put(ds, DCM_PatientName, get("PatientName", fromDicom ? "" : "DCV^PLACEHOLDER"));
+        Put(ds, DCM_PatientID, get("PatientID", fromDicom ? "" : "DCV-" + series.substr(series.size() - 8)));
+        Put(ds, DCM_PatientBirthDate, get("PatientBirthDate"));
+        Put(ds, DCM_PatientSex, get("PatientSex"));
+        Put(ds, DCM_StudyDate, get("StudyDate", now.substr(0, 8)));
+        Put(ds, DCM_StudyTime, get("StudyTime", now.substr(8)));
+        Put(ds, DCM_ReferringPhysicianName, get("ReferringPhysicianName"));
+        Put(ds, DCM_StudyID, get("StudyID"));
+        Put(ds, DCM_AccessionNumber, get("AccessionNumber"));
+        if (!get("StudyDescription").empty() || !fromDicom)
+          Put(ds, DCM_StudyDescription, get("StudyDescription", "Not from DICOM: placeholder study (dcv)"));
+        Put(ds, DCM_Modality, get("Modality", "OT"));
+        if (!get("BodyPartExamined").empty())
+          Put(ds, DCM_BodyPartExamined, get("BodyPartExamined"));
+        if (!ct || get("BodyPartExamined").empty())
+          Put(ds, DCM_Laterality, ""); // type 2C: a paired body part (or one not known) needs it
+        Put(ds, DCM_SeriesNumber, std::to_string(std::stoi(get("SeriesNumber", "0")) + 9000));
+        Put(ds, DCM_SeriesDescription, (get("SeriesDescription") + " dcv lossy").substr(0, 64));
+        Put(ds, DCM_Manufacturer, get("Manufacturer"));
+        if (!get("ManufacturerModelName").empty())
+          Put(ds, DCM_ManufacturerModelName, get("ManufacturerModelName"));
+        if (!get("InstitutionName").empty())
+          Put(ds, DCM_InstitutionName, get("InstitutionName"));
+        Put(ds, DCM_SoftwareVersions, std::string("dcv ") + ModuleVersion);
+        Put(ds, DCM_InstanceNumber, std::to_string(z + 1));
+        Put(ds, DCM_ImageType, ct ? "DERIVED\\SECONDARY\\AXIAL" : "DERIVED\\SECONDARY");
+        Put(ds, DCM_DerivationDescription, derivation);
+        Put(ds, DCM_LossyImageCompression, "01");
+        Put(ds, DCM_LossyImageCompressionRatio, Decimal(ratio));
+        Put(ds, DCM_LossyImageCompressionMethod, "DCV");
+        Put(ds, DCM_ContentDate, now.substr(0, 8));
+        Put(ds, DCM_ContentTime, now.substr(8));
+        if (!ct)
+        {
+          Put(ds, DCM_ConversionType, "WSD");
+          Put(ds, DCM_PatientOrientation, "");
+        }
+        else
+        {
+          Put(ds, DCM_KVP, get("KVP"));
+          Put(ds, DCM_PatientPosition, get("PatientPosition")); // type 2C for CT
+          Put(ds, DCM_AcquisitionNumber, "");
+        }
+        // Image plane: axis 0 along a row (columns), axis 1 down a column (rows).
+        Put(ds, DCM_PixelSpacing, Decimal(header.spacing[1]) + "\\" + Decimal(header.spacing[0]));
+        Put(ds,
+            DCM_ImageOrientationPatient,
+            Decimal(d[0]) + "\\" + Decimal(d[3]) + "\\" + Decimal(d[6]) + "\\" + Decimal(d[1]) + "\\" + Decimal(d[4]) +
+              "\\" + Decimal(d[7]));
+        std::string position;
+        for (int r = 0; r < 3; ++r)
+        {
+          position += (r ? "\\" : "") + Decimal(header.origin[r] + d[3 * r + 2] * header.spacing[2] * z);
+        }
+        Put(ds, DCM_ImagePositionPatient, position);
+        Put(ds, DCM_SliceThickness, get("SliceThickness", Decimal(header.spacing[2])));
+        Put(ds, DCM_SamplesPerPixel, "1");
+        Put(ds, DCM_PhotometricInterpretation, "MONOCHROME2");
+        Put(ds, DCM_Rows, std::to_string(ny));
+        Put(ds, DCM_Columns, std::to_string(nx));
+        Put(ds, DCM_BitsAllocated, "16");
+        Put(ds, DCM_BitsStored, std::to_string(enc.bitsStored));
+        Put(ds, DCM_HighBit, std::to_string(enc.bitsStored - 1));
+        Put(ds, DCM_PixelRepresentation, enc.isSigned ? "1" : "0");
+        Put(ds, DCM_RescaleIntercept, Decimal(enc.intercept));
+        Put(ds, DCM_RescaleSlope, Decimal(enc.slope));
+        if (!ct)
+          Put(ds, DCM_RescaleType, "US");
       }
-      // Image plane: axis 0 along a row (columns), axis 1 down a column (rows).
-      Put(ds, DCM_PixelSpacing, Decimal(header.spacing[1]) + "\\" + Decimal(header.spacing[0]));
-      Put(ds,
-          DCM_ImageOrientationPatient,
-          Decimal(d[0]) + "\\" + Decimal(d[3]) + "\\" + Decimal(d[6]) + "\\" + Decimal(d[1]) + "\\" + Decimal(d[4]) +
-            "\\" + Decimal(d[7]));
-      std::string position;
-      for (int r = 0; r < 3; ++r)
-      {
-        position += (r ? "\\" : "") + Decimal(header.origin[r] + d[3 * r + 2] * header.spacing[2] * z);
-      }
-      Put(ds, DCM_ImagePositionPatient, position);
-      Put(ds, DCM_SliceThickness, get("SliceThickness", Decimal(header.spacing[2])));
-      Put(ds, DCM_SamplesPerPixel, "1");
-      Put(ds, DCM_PhotometricInterpretation, "MONOCHROME2");
-      Put(ds, DCM_Rows, std::to_string(ny));
-      Put(ds, DCM_Columns, std::to_string(nx));
-      Put(ds, DCM_BitsAllocated, "16");
-      Put(ds, DCM_BitsStored, std::to_string(enc.bitsStored));
-      Put(ds, DCM_HighBit, std::to_string(enc.bitsStored - 1));
-      Put(ds, DCM_PixelRepresentation, enc.isSigned ? "1" : "0");
-      Put(ds, DCM_RescaleIntercept, Decimal(enc.intercept));
-      Put(ds, DCM_RescaleSlope, Decimal(enc.slope));
-      if (!ct)
-        Put(ds, DCM_RescaleType, "US");
       slice(z, values);
       for (std::size_t i = 0; i < pixels.size(); ++i)
       {

@@ -126,7 +126,7 @@ ReadVolumePixelType(const std::string & path)
 }
 
 VolumeInput
-OpenVolume(const std::string & path, const std::string & series, bool resample)
+OpenVolume(const std::string & path, const std::string & series, bool resample, DicomHeaderMode header)
 {
   VolumeInput v;
   v.path = path;
@@ -149,7 +149,14 @@ OpenVolume(const std::string & path, const std::string & series, bool resample)
   v.metadata = DicomMetadata(v.dicom);
   if (v.resampling.needed)
   {
+    // The files' headers describe slices the resampled volume does not have: only the fixed list.
+    for (const auto & file : v.dicom.files)
+      CheckDicomPixelData(file);
     v.metadata.emplace_back("Resampled", v.resampling.description); // the DICOM writer's derivation says so
+  }
+  else
+  {
+    v.metadata.emplace_back(DicomHeaderKey, ReadDicomHeaders(v.dicom.files, header));
   }
   return v;
 }

@@ -30,6 +30,7 @@
 #include "itkImageSeriesReader.h"
 
 #include "dcvDicom.h"
+#include "dcvDicomHeader.h"
 #include "dcvGDCM.h"
 
 #include <cstdint>
@@ -104,9 +105,12 @@ struct VolumeInput
 
 /** Opens a volume: checks a volume file's header (ReadVolumeHeader), or finds and checks a DICOM series
  * (`series`: its Series Instance UID, needed when a directory holds several; `resample`: a tilted or
- * unevenly spaced series is resampled instead of refused); Failure otherwise. */
+ * unevenly spaced series is resampled instead of refused; every file's pixel data whole); Failure
+ * otherwise. A series on its own grid keeps every file's header (`header`: all of it, or the essential
+ * attributes) in its metadata, as the "DICOM Header" pair (ReadDicomHeaders). */
 VolumeInput
-OpenVolume(const std::string & path, const std::string & series = "", bool resample = false);
+OpenVolume(const std::string & path, const std::string & series = "", bool resample = false,
+           DicomHeaderMode header = DicomHeaderMode::Full);
 
 /** Reads an opened volume as an image of pixel type T (DICOM: rescaled, so CT is in Hounsfield units). */
 template <typename T>

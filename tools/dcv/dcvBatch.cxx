@@ -89,7 +89,7 @@ OneLine(const std::string & reason)
  * item's status. */
 Outcome
 CompressItem(const Item & item, const fs::path & outputDir, const EncoderOptions & base, bool force, bool resample,
-             const std::function<void(double)> & progress)
+             DicomHeaderMode header, const std::function<void(double)> & progress)
 {
   const auto        start = std::chrono::steady_clock::now();
   const std::string output = (outputDir / (item.name + ".dcv")).string();
@@ -124,7 +124,7 @@ CompressItem(const Item & item, const fs::path & outputDir, const EncoderOptions
   }
   try
   {
-    const VolumeInput volume = OpenVolume(item.path, item.series, resample);
+    const VolumeInput volume = OpenVolume(item.path, item.series, resample, header);
     EncoderOptions    options = base;
     options.metadata.insert(options.metadata.begin(), volume.metadata.begin(), volume.metadata.end());
     options.progress = progress;
@@ -132,6 +132,7 @@ CompressItem(const Item & item, const fs::path & outputDir, const EncoderOptions
     VisitPixelType(volume.type, [&](auto pixel) {
       auto image = ReadVolume<decltype(pixel)>(volume);
       CheckFiniteVoxels(image.GetPointer(), item.path);
+      CheckDicomHeaderFits(item.path, volume, options, header, image->GetBufferedRegion().GetNumberOfPixels());
       r = itk::DCVEncode(std::move(image), options); // freed once copied
     });
     // Replacing is allowed: an existing file here is damaged (a valid one was skipped) or --force.
@@ -242,10 +243,13 @@ Batch(const BatchOptions & b)
     for (std::size_t i; (i = next++) < items.size();)
     {
       progress.Started(worker, items[i].name);
-      outcomes[i] =
-        CompressItem(items[i], outputDir, base, b.method.force, b.method.resample, [&progress, worker](double f) {
-          progress.Fraction(worker, f);
-        });
+      outcomes[i] = CompressItem(items[i],
+                                 outputDir,
+                                 base,
+                                 b.method.force,
+                                 b.method.resample,
+                                 b.method.dicomHeader,
+                                 [&progress, worker](double f) { progress.Fraction(worker, f); });
       progress.Finished(worker, items[i].name, outcomes[i]);
     }
   };

@@ -62,6 +62,7 @@ struct MethodOptions
   std::vector<int32_t> scale;             // --scale, when given
   std::string          series;            // --series: the Series Instance UID of a DICOM input
   bool                 resample{ false }; // --resample: a tilted or unevenly spaced DICOM series onto a grid
+  DicomHeaderMode      dicomHeader{ DicomHeaderMode::Full }; // --dicom-header: what of a DICOM series' headers is kept
   bool                 force{ false };
   bool                 quiet{ false };
 
@@ -79,7 +80,7 @@ void
 WithVolume(const std::string & input, const std::string & series, const std::string & output, const MethodOptions & o,
            bool dcvFile, TFunction && f)
 {
-  const VolumeInput        volume = OpenVolume(input, series, o.resample);
+  const VolumeInput        volume = OpenVolume(input, series, o.resample, o.dicomHeader);
   std::vector<std::string> inputs = volume.dicom.files;
   inputs.push_back(input);
   CheckOutputIsNotInput(inputs, output); // before "already exists": the more useful message
@@ -95,6 +96,17 @@ WithVolume(const std::string & input, const std::string & series, const std::str
   }
   VisitPixelType(volume.type, [&](auto pixel) { f(ReadVolume<decltype(pixel)>(volume), volume); });
 }
+
+/** Refuses (Failure naming `input`, the bytes the header needs and the option that makes it fit) a
+ * DICOM series whose stored header (the metadata of `options`) does not fit the bit budget of a volume
+ * of `voxels` at all; nothing without a budget or a header. */
+void
+CheckDicomHeaderFits(const std::string & input, const VolumeInput & volume, const EncoderOptions & options,
+                     DicomHeaderMode mode, uint64_t voxels);
+
+/** "DICOM header: N bytes (P% of the file)", or "" for a file without one. */
+std::string
+FormatDicomHeaderBytes(const FileHeader & header, std::size_t fileBytes);
 
 /** Declares --resample (MethodOptions::resample) on a command. */
 void

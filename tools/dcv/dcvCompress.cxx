@@ -43,6 +43,8 @@ Compress(const CompressOptions & c)
     CheckFiniteVoxels(image.GetPointer(), c.input);
     DefaultPointsForVolume(options, c.targets.points, image->GetBufferedRegion().GetNumberOfPixels());
     options.metadata.insert(options.metadata.begin(), volume.metadata.begin(), volume.metadata.end());
+    CheckDicomHeaderFits(
+      c.input, volume, options, c.method.dicomHeader, image->GetBufferedRegion().GetNumberOfPixels());
     try
     {
       r = itk::DCVEncode(std::move(image), options); // freed once copied: the volume's bytes less at the peak
@@ -67,8 +69,11 @@ Compress(const CompressOptions & c)
               << "residual layer: " << FormatResidualLayer(r.header) << "\n"
               << "step: " << r.header.quantizationStep << "\n"
               << "scale: " << r.header.scale[0] << " " << r.header.scale[1] << " " << r.header.scale[2] << "\n"
-              << "PSNR: " << FormatPSNR(r.psnr) << "\n"
-              << "seconds: " << SecondsSince(start) << "\n";
+              << "PSNR: " << FormatPSNR(r.psnr) << "\n";
+    const std::string dicomHeader = FormatDicomHeaderBytes(r.header, r.bytes.size());
+    if (!dicomHeader.empty())
+      std::cout << "DICOM header: " << dicomHeader << "\n";
+    std::cout << "seconds: " << SecondsSince(start) << "\n";
     const auto & t = r.timings;
     std::cout << "seconds by stage: smoothing " << t.smoothing << ", refinement " << t.refinement << ", decimation "
               << t.decimation << ", least squares " << t.leastSquares << ", residual layer " << t.residualLayer

@@ -59,7 +59,21 @@ Info(const std::string & input)
   std::cout << "memory to decode: " << FormatByteCount(DecodingMemory(h, DecodeOutput::Volume)) << " (mesh alone "
             << FormatByteCount(DecodingMemory(h, DecodeOutput::Mesh)) << ")\n";
   for (const auto & kv : h.metadata)
-    std::cout << "metadata: " << kv.first << " = " << kv.second << "\n";
+  {
+    if (kv.first == DicomHeaderKey)
+    {
+      // Bytes, not text: what it holds and what it costs.
+      const DicomHeaderBlock block = SplitDicomHeader(kv.second, file.name);
+      std::size_t            own = 0;
+      for (const auto & f : block.files)
+        own += f.size();
+      std::cout << "DICOM header: " << FormatDicomHeaderBytes(h, file.size) << ", " << block.files.size() << " files, "
+                << (block.mode == 0 ? "full" : "essential") << ", " << block.common.size() << " bytes common to all, "
+                << own << " per file in all (before deflation)\n";
+    }
+    else
+      std::cout << "metadata: " << kv.first << " = " << kv.second << "\n";
+  }
 }
 
 const RegisterCommand info{ { "info",

@@ -94,6 +94,21 @@ AddMethodOptions(CLI::App & command, std::string & input, MethodOptions & o)
   command.add_option("--series", o.series, "Series Instance UID, when the DICOM directory holds several");
   AddResampleOption(command, o);
   command
+    .add_option_function<std::string>(
+      "--dicom-header",
+      [&o](const std::string & text) {
+        if (text == "full")
+          o.dicomHeader = DicomHeaderMode::Full;
+        else if (text == "essential")
+          o.dicomHeader = DicomHeaderMode::Essential;
+        else
+          throw CLI::ValidationError("--dicom-header", "must be full or essential, got " + text);
+      },
+      "What a DICOM series' headers keep in the .dcv file (counted in its bytes): full (every attribute of every "
+      "file, private ones too) or essential (patient, study, series, equipment, frame of reference, image plane "
+      "and pixel, character set, VOI LUT, per-slice position and instance). Default: full")
+    ->type_name("full|essential");
+  command
     .add_option("--mode,-m",
                 o.mode,
                 "silva (refinement), dec (+ decimation), dec+com (+ combined image approach: the paper's method), "
@@ -168,6 +183,71 @@ AddMaximumMemoryOption(CLI::App & command, uint64_t & maximumMemory, const std::
         "refused before anything is allocated. Default: half of the physical memory, " +
         FormatByteCount(DefaultMaximumMemory()))
     ->type_name("SIZE");
+}
+
+void
+CheckDicomHeaderFits(const std::string & input, const VolumeInput & volume, const EncoderOptions & options,
+                     DicomHeaderMode mode, uint64_t voxels)
+{
+  if (!(options.bitsPerVoxel > 0.0) || volume.dicom.files.empty())
+  {
+    return;
+  }
+  const auto containerBytes = [](const std::vector<std::pair<std::string, std::string>> & metadata) {
+    FileHeader h;
+    h.size = { 2, 2, 2 };
+    h.metadata = metadata;
+    return SerializeFile(h, {}).size();
+  };
+  const double budget = std::floor(options.bitsPerVoxel * double(voxels) / 8.0);
+  FileHeader   withHeader;
+  withHeader.size = { 2, 2, 2 };
+  withHeader.metadata = options.metadata;
+  const std::size_t header = DicomHeaderBytes(withHeader);
+  const std::size_t bytes = containerBytes(options.metadata);
+  if (header == 0 || double(bytes) < budget)
+  {
+    return;
+  }
+  std::ostringstream message;
+  message << "cannot compress " << Quoted(input) << ": its DICOM header (" << DicomHeaderModeName(mode) << ") takes "
+          << header << " bytes, the file's header and metadata " << bytes << ", and --bpv " << options.bitsPerVoxel
+          << " allows " << std::size_t(budget) << " bytes for the whole file";
+  const auto least = [voxels](std::size_t n) { return std::ceil(double(n + 1) * 8.0 / double(voxels) * 1e4) / 1e4; };
+  if (mode == DicomHeaderMode::Full)
+  {
+    auto essential = options.metadata;
+    for (auto & kv : essential)
+    {
+      if (kv.first == DicomHeaderKey)
+        kv.second = ReadDicomHeaders(volume.dicom.files, DicomHeaderMode::Essential);
+    }
+    const std::size_t smaller = containerBytes(essential);
+    message << "; --dicom-header essential needs " << smaller << " bytes";
+    if (!(double(smaller) < budget))
+      message << ", still too many: a larger --bpv (at least " << least(smaller) << " with it, " << least(bytes)
+              << " without)";
+  }
+  else
+  {
+    message << "; a larger --bpv (at least " << least(bytes) << ") makes it fit";
+  }
+  throw Failure(message.str());
+}
+
+std::string
+FormatDicomHeaderBytes(const FileHeader & header, std::size_t fileBytes)
+{
+  const std::size_t bytes = DicomHeaderBytes(header);
+  if (bytes == 0)
+  {
+    return "";
+  }
+  std::ostringstream text;
+  text.precision(3);
+  text << bytes << " bytes (" << 100.0 * double(bytes) / double(std::max<std::size_t>(1, fileBytes))
+       << "% of the file)";
+  return text.str();
 }
 
 TargetOptions
