@@ -130,6 +130,10 @@ struct ResidualCoding
   Wavelet     wavelet;
   Arrangement arrangement;
   int32_t     levels{ 0 };
+  /** 2D wavelet levels fewer than the most the image takes (JPEG 2000 resolutions: one more than the levels
+   * the image's smaller side allows, at most 6). At low rates the coarse levels of a small mosaic span the
+   * borders between its slices, and fewer of them decode closer. */
+  int32_t fewerResolutions{ 0 };
 };
 
 /** Codes the spline's residual against `voxels` (the original, laid out as the grid) in at most
@@ -159,6 +163,30 @@ public:
    * the encodes it ran. */
   std::size_t
   Fill(std::size_t slack, int attempts = 3);
+  /** The best coding so far and what the next trial starts from: Save() it before a trial whose result
+   * may be refused, Restore() it to refuse the trial. */
+  struct State
+  {
+    ResidualChoice best;
+    ResidualCoding coding;
+    double         target;
+    std::size_t    stored;
+    double         backOff;
+  };
+  State
+  Save() const
+  {
+    return { best, bestCoding, bestTarget, bestStored, backOff };
+  }
+  void
+  Restore(State && s)
+  {
+    best = std::move(s.best);
+    bestCoding = s.coding;
+    bestTarget = s.target;
+    bestStored = s.stored;
+    backOff = s.backOff;
+  }
   /** Bytes of the budget the best codestream leaves (0 with none). */
   std::size_t
   Unused() const

@@ -446,6 +446,84 @@ TEST(ResidualLayer, FillStaysWithinTheBudgetAndDecodesNoWorse)
   std::cout << filled << " of 5 budgets filled further" << std::endl;
 }
 
+/** The 2D wavelet levels of a codestream: SPcod's first byte in its COD marker segment. */
+int
+DecompositionLevels(const std::vector<uint8_t> & codestream)
+{
+  for (std::size_t i = 0; i + 10 < codestream.size(); ++i)
+    if (codestream[i] == 0xff && codestream[i + 1] == 0x52)
+      return codestream[i + 9]; // marker 2, Lcod 2, Scod 1, progression 1, layers 2, MCT 1
+  return -1;
+}
+
+// Fewer 2D wavelet levels than the image takes (the encoder's corners' layer searches them) code and
+// decode as the decoder decodes them, one level fewer each; none at all left is no coding.
+TEST(ResidualLayer, FewerResolutionsCodeFewerLevelsAndDecodeExactly)
+{
+  const GridSize     g{ 64, 60, 8 };
+  const auto         image = ThickSlices(g);
+  std::vector<float> voxels(image->GetBufferPointer(), image->GetBufferPointer() + g.NumberOfVoxels());
+  dcv::Approximation corners;
+  corners.grid = g;
+  for (int32_t z : { 0, g.z - 1 })
+    for (int32_t y : { 0, g.y - 1 })
+      for (int32_t x : { 0, g.x - 1 })
+        corners.points.push_back({ x, y, z });
+  corners.values.assign(8, 0.0);
+  corners.tetrahedra = dcv::Tetrahedralize(corners.points);
+  int most = -1;
+  for (int32_t fewer = 0; fewer <= 3; ++fewer)
+  {
+    dcv::ResidualSearch search(voxels.data(), dcv::PixelType::Int16, corners, 1.0, 3000);
+    const double error = search.Try({ dcv::Wavelet::Irreversible97, dcv::Arrangement::Mosaic, 1, fewer });
+    ASSERT_TRUE(std::isfinite(error)) << fewer;
+    const dcv::ResidualChoice best = std::move(search).Best();
+    const int levels = DecompositionLevels(best.codestream);
+    if (fewer == 0)
+      most = levels;
+    EXPECT_EQ(levels, most - fewer);
+    EXPECT_EQ(dcv::DecodeResidualLayer(best.codestream, g, "x", best.levels), best.samples);
+    EXPECT_EQ(best.squaredError, error);
+  }
+  dcv::ResidualSearch search(voxels.data(), dcv::PixelType::Int16, corners, 1.0, 3000);
+  EXPECT_TRUE(std::isinf(search.Try({ dcv::Wavelet::Irreversible97, dcv::Arrangement::Mosaic, 1, most + 1 })));
+}
+
+// Restore() undoes the trials since Save(): the best coding and its codestream are the saved ones, and
+// the next trial starts where it would have.
+TEST(ResidualLayer, RestoreUndoesTheTrialsSinceSave)
+{
+  const GridSize     g{ 64, 60, 8 };
+  const auto         image = ThickSlices(g);
+  std::vector<float> voxels(image->GetBufferPointer(), image->GetBufferPointer() + g.NumberOfVoxels());
+  dcv::Approximation corners;
+  corners.grid = g;
+  for (int32_t z : { 0, g.z - 1 })
+    for (int32_t y : { 0, g.y - 1 })
+      for (int32_t x : { 0, g.x - 1 })
+        corners.points.push_back({ x, y, z });
+  corners.values.assign(8, 0.0);
+  corners.tetrahedra = dcv::Tetrahedralize(corners.points);
+  const dcv::ResidualCoding finer{ dcv::Wavelet::Irreversible97, dcv::Arrangement::Mosaic, 1 };
+  const dcv::ResidualCoding coarser{ dcv::Wavelet::Irreversible97, dcv::Arrangement::Mosaic, 1, 2 };
+  dcv::ResidualSearch       reference(voxels.data(), dcv::PixelType::Int16, corners, 1.0, 2000);
+  reference.Try(finer);
+  dcv::ResidualSearch search(voxels.data(), dcv::PixelType::Int16, corners, 1.0, 2000);
+  search.Try(finer);
+  dcv::ResidualSearch::State saved = search.Save();
+  const double           first = search.BestError();
+  const std::size_t      unused = search.Unused();
+  search.Try(coarser);
+  search.Try({ dcv::Wavelet::Reversible53, dcv::Arrangement::Mosaic, 1 });
+  search.Restore(std::move(saved));
+  EXPECT_EQ(search.BestError(), first);
+  EXPECT_EQ(search.Unused(), unused);
+  search.Fill(0, 3);
+  reference.Fill(0, 3);
+  EXPECT_EQ(search.BestError(), reference.BestError());
+  EXPECT_EQ(std::move(search).Best().codestream, std::move(reference).Best().codestream);
+}
+
 // The search keeps no volume of samples between its encodes: each encode after a coding's first (a
 // target that overshot, a fill) computes them again and transforms them again. Its codestreams must
 // decode as close as EncodeResidualLayer()'s from the residual given whole, in the same bytes.

@@ -726,8 +726,10 @@ ResidualSearch::Try(const ResidualCoding & coding)
   if (maximumBytes <= InterSliceLevelsFieldBytes)
     return std::numeric_limits<double>::infinity();
   LayerImage image;
-  if (!PrepareImage(Source(), grid, coding.arrangement, coding.levels, image))
+  if (!PrepareImage(Source(), grid, coding.arrangement, coding.levels, image) ||
+      coding.fewerResolutions >= image.resolutions)
     return std::numeric_limits<double>::infinity();
+  image.resolutions -= coding.fewerResolutions;
   double               target = 0.0;
   std::vector<uint8_t> codestream = EncodeWithin(
     image, Limit(coding), coding.wavelet, target, &grid, CompactLayerSaving(grid, coding.arrangement), &backOff);
@@ -747,6 +749,7 @@ ResidualSearch::Fill(std::size_t slack, int attempts)
   LayerImage image;
   if (!PrepareImage(Source(), grid, bestCoding.arrangement, bestCoding.levels, image))
     return 0;
+  image.resolutions -= bestCoding.fewerResolutions; // Try() coded it so: at least one is left
   // OpenJPEG's size follows its target within a few bytes, not monotonically: aim at the bytes left from
   // the largest target that fit, then back from the smallest that did not by its excess, within the two.
   const ResidualCoding coding = bestCoding;
@@ -801,12 +804,14 @@ ResidualSearch::Fill(std::size_t slack, int attempts)
     if (!PrepareImage(Source(), grid, coding.arrangement, coding.levels, coarser))
       break;
     coarser.resolutions = resolutions - fewer;
+    ResidualCoding coarserCoding = coding;
+    coarserCoding.fewerResolutions += fewer;
     double               target = 0.0;
     std::vector<uint8_t> codestream =
       EncodeWithin(coarser, limit, coding.wavelet, target, &grid, CompactLayerSaving(grid, coding.arrangement));
     ++tried;
     if (!codestream.empty() && StoredLayerBytes(codestream, grid) > bestStored)
-      Measure(std::move(codestream), coding, target);
+      Measure(std::move(codestream), coarserCoding, target);
   }
   return tried;
 }
