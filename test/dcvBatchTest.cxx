@@ -478,6 +478,40 @@ TEST_F(Batch, DicomSeriesWithPixelDataCutShortFailAndTheOthersGoOn)
     EXPECT_EQ(summary.at(name)[6], "ok") << name;
 }
 
+TEST_F(Batch, ADicomFileCutShortInsideItsHeaderFailsItsDirectoryAndTheOthersGoOn)
+{
+  const std::string series = "dicom-ct-brain-5mm";
+  if (!dcv::test::HaveData(series))
+  {
+    GTEST_SKIP() << "needs " << dcv::test::DataFile(series) << " (../shared/data is absent)";
+  }
+  fs::remove(m_Tree + "/c/broken.nrrd");
+  // GDCM's series scan aborted the whole run on such a file.
+  fs::create_directories(m_Tree + "/dicom/cut");
+  for (const std::string name : { "I130.dcm", "I140.dcm", "I150.dcm" })
+  {
+    fs::copy_file(dcv::test::DataFile(series) + "/" + name, m_Tree + "/dicom/cut/" + name);
+    fs::permissions(m_Tree + "/dicom/cut/" + name, fs::perms::owner_write, fs::perm_options::add);
+  }
+  const std::string cut = FileBytes(m_Tree + "/dicom/cut/I140.dcm");
+  std::ofstream(m_Tree + "/dicom/cut/I140.dcm", std::ios::binary | std::ios::trunc) << cut.substr(0, 7600);
+
+  const Result r = RunDcv("batch " + m_Tree + " " + Path("out") + " --points 100 --jobs 2");
+  EXPECT_EQ(r.status, 1) << r.output;
+  EXPECT_TRUE(Contains(r.output, "1 of 5 items failed")) << r.output;
+  EXPECT_TRUE(Contains(r.output, "I140.dcm': it is cut short inside its header (the file ends at byte 7600)"))
+    << r.output;
+  const auto summary = Summary(Path("out/batch-summary.csv"));
+  ASSERT_TRUE(summary.count("dicom_cut")) << r.output;
+  const std::string status = summary.at("dicom_cut")[6];
+  EXPECT_TRUE(Contains(status, "failed")) << status;
+  EXPECT_TRUE(Contains(status, "I140.dcm")) << status;
+  EXPECT_TRUE(Contains(status, "cut short inside its header")) << status;
+  EXPECT_FALSE(fs::exists(Path("out/dicom_cut.dcv")));
+  for (const auto & name : m_Good)
+    EXPECT_EQ(summary.at(name)[6], "ok") << name;
+}
+
 TEST(BatchResample, ATiltedSeriesFailsNamingTheOptionAndIsResampledWithIt)
 {
   const dcv::test::TemporaryDirectory directory;

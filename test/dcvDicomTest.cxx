@@ -961,3 +961,60 @@ TEST_F(DicomHeaders, AFileWithoutTheHeaderBlockStillGivesADerivedSeries)
 }
 
 } // namespace
+
+TEST_F(DicomHeaders, AFileCutShortInsideItsHeaderIsRefusedNamingIt)
+{
+  // GDCM's series scan aborted the program on such a file: it is refused before GDCM reads it.
+  KeepSlices(3);
+  std::ofstream(m_Series + "/README.txt") << "not DICOM"; // still skipped, not refused
+  const std::string cut = m_Files[1];
+  CutShort(m_Series + "/" + cut, 7600); // its pixel data starts after byte 7626 or later
+  const std::vector<std::string> phrases{ "cannot read the DICOM file",
+                                          cut,
+                                          "it is cut short inside its header (the file ends at byte 7600)" };
+  ExpectRefused(phrases);
+  for (const std::string & command :
+       { "convert " + m_Series + " " + Path("out.nrrd"),
+         "compress " + m_Series + "/" + m_Files[0] + " " + Path("out.dcv") + " --points 100",
+         "compress " + m_Series + "/" + cut + " " + Path("out.dcv") + " --points 100" })
+  {
+    const Result r = RunDcv(command);
+    EXPECT_EQ(r.status, 1) << command << ": " << r.output;
+    for (const auto & phrase : phrases)
+      EXPECT_NE(r.output.find(phrase), std::string::npos) << "missing '" << phrase << "' in: " << r.output;
+  }
+  EXPECT_FALSE(fs::exists(Path("out.nrrd")));
+  EXPECT_FALSE(fs::exists(Path("out.dcv")));
+  // Cut inside its file meta information, or right after the "DICM" prefix.
+  for (const std::size_t bytes : { std::size_t(300), std::size_t(132) })
+  {
+    CutShort(m_Series + "/" + cut, bytes);
+    ExpectRefused({ cut, "it is cut short inside its header (the file ends at byte " + std::to_string(bytes) + ")" });
+  }
+}
+
+TEST_F(DicomHeaders, AnImageWithoutPixelDataIsRefusedAtEitherEndOrInTheMiddle)
+{
+  // GDCM's series scan leaves such a file out: at either end of the series it went unseen.
+  KeepSlices(3);
+  const auto withoutPixelData = [&](const std::string & file) {
+    DcmFileFormat dicom;
+    ASSERT_TRUE(dicom.loadFile((m_Series + "/" + file).c_str()).good()) << file;
+    ASSERT_TRUE(dicom.getDataset()->findAndDeleteElement(DCM_PixelData).good()) << file;
+    ASSERT_TRUE(dicom.saveFile((m_Series + "/" + file + ".header").c_str()).good()) << file;
+    fs::rename(m_Series + "/" + file, Path(file));
+    fs::rename(m_Series + "/" + file + ".header", m_Series + "/" + file);
+  };
+  for (const std::string & file : { m_Files.front(), m_Files.back(), m_Files[1] })
+  {
+    withoutPixelData(file);
+    ExpectRefused({ "cannot read the DICOM file", file, "it has no pixel data" });
+    fs::rename(Path(file), m_Series + "/" + file); // the whole file back
+  }
+  // Of another series, or not an image: not the series' business.
+  withoutPixelData(m_Files.back());
+  Edit(m_Files.back(), DCM_SeriesInstanceUID, "1.2.826.0.1.3680043.2.1125.99.3");
+  const Result r = RunDcv("compress " + m_Series + " " + Path("b.dcv") + " --points 100 --series " +
+                          Get(m_Files.front(), DCM_SeriesInstanceUID));
+  EXPECT_EQ(r.status, 0) << r.output;
+}

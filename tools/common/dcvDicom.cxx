@@ -16,6 +16,7 @@
  *
  *=========================================================================*/
 #include "dcvDicom.h"
+#include "dcvDicomHeader.h"
 #include "dcvGDCM.h"
 #include "dcvTools.h"
 
@@ -145,6 +146,11 @@ IsDicomInput(const std::string & path)
   {
     return false;
   }
+  if (StartsAsDicom(path))
+  {
+    // GDCM aborts on a file cut short inside its header: refused before GDCM reads it, or its series.
+    CheckDicomHeaders(fs::path(path).parent_path().string());
+  }
   // The other formats first, so that GDCM is loaded only for what none of them reads.
   if (const auto io = itk::ImageIOFactory::CreateImageIO(path.c_str(), itk::IOFileModeEnum::ReadMode))
   {
@@ -155,6 +161,13 @@ IsDicomInput(const std::string & path)
 
 DicomSeriesList
 ListDicomSeries(const std::string & directory)
+{
+  CheckDicomHeaders(directory); // GDCM's scan aborts on a file cut short inside its header
+  return ListCheckedDicomSeries(directory);
+}
+
+DicomSeriesList
+ListCheckedDicomSeries(const std::string & directory)
 {
   const auto & gdcm = GDCM();
   try
@@ -177,7 +190,8 @@ FindDicomSeries(const std::string & path, const std::string & uid, std::size_t &
     // One file stands for its series.
     wanted = Tag(ReadHeader(path)->GetMetaDataDictionary(), "0020|000e");
   }
-  const auto  listed = ListDicomSeries(directory.string());
+  const auto  headers = CheckDicomHeaders(directory.string());
+  const auto  listed = ListCheckedDicomSeries(directory.string());
   std::size_t files = 0, dicom = 0;
   for (const auto & entry : fs::directory_iterator(directory))
   {
@@ -207,17 +221,32 @@ FindDicomSeries(const std::string & path, const std::string & uid, std::size_t &
     throw Failure("no DICOM image in " + Quoted(directory.string()) +
                   (files ? " (" + std::to_string(files) + " files, none of them DICOM)" : " (it is empty)"));
   }
+  // GDCM's scan leaves out an image of the series without pixel data (at either end it would go unseen).
+  const auto whole = [&](const DicomSeries & s) {
+    for (const auto & h : headers)
+    {
+      if (h.image && !h.pixelData && h.seriesUid == s.uid &&
+          std::none_of(s.files.begin(), s.files.end(), [&](const std::string & f) {
+            std::error_code error;
+            return fs::equivalent(f, h.file, error);
+          }))
+      {
+        CheckDicomPixelData(h.file); // Failure naming the file
+      }
+    }
+    return s;
+  };
   if (!wanted.empty())
   {
     for (const auto & s : all)
     {
       if (s.uid == wanted)
-        return s;
+        return whole(s);
     }
   }
   if (all.size() == 1 && wanted.empty())
   {
-    return all.front();
+    return whole(all.front());
   }
   std::ostringstream list;
   list << (wanted.empty() ? Quoted(directory.string()) + " holds " + std::to_string(all.size()) +

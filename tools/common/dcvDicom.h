@@ -60,9 +60,14 @@ DicomSeries
 FindDicomSeries(const std::string & path, const std::string & uid, std::size_t & skipped);
 
 /** The DICOM series of one directory as GDCM groups them (by Series Instance UID alone: size and
- * geometry are checked later): (UID, files) pairs. Failure naming the directory when GDCM cannot. */
+ * geometry are checked later): (UID, files) pairs. Failure naming the directory when GDCM cannot, or
+ * naming a file cut short inside its header (CheckDicomHeaders), before GDCM reads any. */
 DicomSeriesList
 ListDicomSeries(const std::string & directory);
+
+/** ListDicomSeries of a directory whose files CheckDicomHeaders has checked. */
+DicomSeriesList
+ListCheckedDicomSeries(const std::string & directory);
 
 /** The pixel type of the series after rescale (int16 for CT in Hounsfield units). */
 PixelType

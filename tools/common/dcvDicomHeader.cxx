@@ -25,6 +25,7 @@
 #include <dcmtk/oflog/oflog.h>
 
 #include <algorithm>
+#include <cctype>
 #include <filesystem>
 #include <fstream>
 #include <map>
@@ -52,6 +53,58 @@ Count(uint64_t n)
   return std::to_string(n);
 }
 
+/** Where the pixel data element is: its tag found, its header whole, its value's length and start. */
+struct PixelDataAt
+{
+  bool     found{ false };
+  bool     complete{ false };
+  uint32_t length{ 0 };
+  uint64_t start{ 0 };
+};
+
+/** The pixel data element's header, which DCMTK's reader stopped at or just after (`stop`): its value's
+ * length and where the value starts, found in the file's bytes around that point. */
+PixelDataAt
+FindPixelData(const std::string & file, uint64_t stop, bool big)
+{
+  const uint64_t from = stop > 16 ? stop - 16 : 0;
+  std::string    window(32, '\0');
+  {
+    std::ifstream raw(file, std::ios::binary);
+    raw.seekg(std::streamoff(from));
+    raw.read(&window[0], std::streamsize(window.size()));
+    window.resize(std::size_t(raw.gcount()));
+  }
+  const std::string tag = big ? std::string("\x7f\xe0\x00\x10", 4) : std::string("\xe0\x7f\x10\x00", 4);
+  const auto        u32 = [&](std::size_t at) {
+    uint32_t v = 0;
+    for (int i = 0; i < 4; ++i)
+      v |= uint32_t(uint8_t(window[at + (big ? 3 - i : i)])) << (8 * i);
+    return v;
+  };
+  PixelDataAt       p;
+  const std::size_t at = window.find(tag);
+  if (at == std::string::npos)
+  {
+    return p;
+  }
+  p.found = true;
+  // Explicit VR when a VR of pixel data follows the tag with its two reserved bytes (the transfer syntax
+  // the reader found may be unknown here).
+  const std::string vr = at + 8 <= window.size() ? window.substr(at + 4, 4) : std::string();
+  const bool        explicitVr = vr.size() == 4 && vr[2] == '\0' && vr[3] == '\0' &&
+                          std::string("OB OW OF OD OL OV UN").find(vr.substr(0, 2)) != std::string::npos;
+  const std::size_t valueAt = explicitVr ? at + 12 : at + 8;
+  if (valueAt > window.size())
+  {
+    return p;
+  }
+  p.complete = true;
+  p.length = explicitVr ? u32(at + 8) : u32(at + 4);
+  p.start = from + valueAt;
+  return p;
+}
+
 /** Reads the header of `file` (every element before its pixel data) into `f` and checks the pixel data
  * (CheckDicomPixelData). */
 void
@@ -77,47 +130,19 @@ LoadHeader(const std::string & file, DcmFileFormat & f)
   {
     throw Failure(what + ": its header is damaged or cut short (" + c.text() + ")");
   }
-  DcmDataset &   ds = *f.getDataset();
-  const DcmXfer  xfer(ds.getOriginalXfer());
-  const uint64_t stop = uint64_t(in.tell());
-  // The pixel data element's header, which the reader stopped at or just after: its value's length and
-  // where the value starts, found in the file's bytes around that point.
-  const uint64_t from = stop > 16 ? stop - 16 : 0;
-  std::string    window(32, '\0');
-  {
-    std::ifstream raw(file, std::ios::binary);
-    raw.seekg(std::streamoff(from));
-    raw.read(&window[0], std::streamsize(window.size()));
-    window.resize(std::size_t(raw.gcount()));
-  }
-  const bool        big = xfer.isBigEndian();
-  const std::string tag = big ? std::string("\x7f\xe0\x00\x10", 4) : std::string("\xe0\x7f\x10\x00", 4);
-  const auto        u32 = [&](std::size_t at) {
-    uint32_t v = 0;
-    for (int i = 0; i < 4; ++i)
-      v |= uint32_t(uint8_t(window[at + (big ? 3 - i : i)])) << (8 * i);
-    return v;
-  };
-  std::size_t at = window.find(tag);
-  if (at == std::string::npos)
+  DcmDataset &      ds = *f.getDataset();
+  const PixelDataAt at = FindPixelData(file, uint64_t(in.tell()), DcmXfer(ds.getOriginalXfer()).isBigEndian());
+  if (!at.found)
   {
     throw Failure(what + ": it has no pixel data (the file ends after its header, at byte " + Count(size) + ")");
   }
-  uint32_t    length = 0;
-  std::size_t valueAt = 0;
-  // Explicit VR when a VR of pixel data follows the tag with its two reserved bytes (the transfer syntax
-  // the reader found may be unknown here).
-  const std::string vr = at + 8 <= window.size() ? window.substr(at + 4, 4) : std::string();
-  const bool        explicitVr = vr.size() == 4 && vr[2] == '\0' && vr[3] == '\0' &&
-                          std::string("OB OW OF OD OL OV UN").find(vr.substr(0, 2)) != std::string::npos;
-  if ((explicitVr ? at + 12 : at + 8) > window.size())
+  if (!at.complete)
   {
     throw Failure(what + ": it is cut short in the header of its pixel data (the file ends at byte " + Count(size) +
                   ")");
   }
-  length = explicitVr ? u32(at + 8) : u32(at + 4);
-  valueAt = explicitVr ? at + 12 : at + 8;
-  const uint64_t start = from + valueAt;
+  const uint32_t length = at.length;
+  const uint64_t start = at.start;
   if (length == 0xffffffffu)
   {
     // Encapsulated (compressed) pixel data: its fragments read whole, or not.
@@ -302,6 +327,107 @@ CheckDicomPixelData(const std::string & file)
 {
   DcmFileFormat f;
   LoadHeader(file, f);
+}
+
+bool
+StartsAsDicom(const std::string & file)
+{
+  std::ifstream raw(file, std::ios::binary);
+  char          head[132] = {};
+  raw.read(head, sizeof head);
+  const std::size_t n = std::size_t(raw.gcount());
+  if (n == sizeof head && std::string(head + 128, 4) == "DICM")
+  {
+    return true; // preamble and prefix (DICOM PS3.10)
+  }
+  if (n < 8)
+  {
+    return false;
+  }
+  // A data set without preamble: its first tag in group 0002 or 0008, little or big endian, followed by
+  // an explicit VR (two capital letters) or an implicit length shorter than the file.
+  const auto u16 = [&](int at, bool big) {
+    return uint16_t(big ? (uint8_t(head[at]) << 8) | uint8_t(head[at + 1])
+                        : uint8_t(head[at]) | (uint8_t(head[at + 1]) << 8));
+  };
+  const bool explicitVr = std::isupper(uint8_t(head[4])) && std::isupper(uint8_t(head[5]));
+  for (const bool big : { false, true })
+  {
+    const uint16_t group = u16(0, big);
+    if (group != 0x0002 && group != 0x0008)
+      continue;
+    uint32_t length = 0;
+    for (int i = 0; i < 4; ++i)
+      length |= uint32_t(uint8_t(head[4 + (big ? 3 - i : i)])) << (8 * i);
+    std::error_code error;
+    if (explicitVr || length < fs::file_size(file, error))
+      return true;
+  }
+  return false;
+}
+
+std::vector<DicomFileHeader>
+CheckDicomHeaders(const std::string & directory)
+{
+  QuietDcmtk();
+  std::vector<std::string> files;
+  std::error_code          error;
+  for (fs::directory_iterator it(directory, error), end; !error && it != end; it.increment(error))
+  {
+    if (it->is_regular_file(error))
+      files.push_back(it->path().string());
+  }
+  std::sort(files.begin(), files.end());
+  std::vector<DicomFileHeader> headers;
+  for (const auto & file : files)
+  {
+    if (!StartsAsDicom(file))
+      continue;
+    const std::string  what = "cannot read the DICOM file " + Quoted(file);
+    const uint64_t     size = fs::file_size(file, error);
+    DcmFileFormat      f;
+    DcmInputFileStream in(file.c_str());
+    if (error || in.status().bad())
+      continue; // unreadable: GDCM skips it too
+    f.transferInit();
+    const OFCondition c = f.readUntilTag(in, EXS_Unknown, EGL_noChange, DCM_MaxReadLength, DCM_PixelData);
+    f.transferEnd();
+    DcmDataset &      ds = *f.getDataset();
+    const std::string cut = ": it is cut short inside its header (the file ends at byte " + Count(size) + ")";
+    if (c.bad() && (in.eos() || c == EC_StreamNotifyClient))
+    {
+      throw Failure(what + cut);
+    }
+    if (c.bad())
+    {
+      continue; // damaged otherwise: left to GDCM, as before
+    }
+    if (ds.card() == 0)
+    {
+      throw Failure(what + cut); // the file meta information and nothing after it
+    }
+    DicomFileHeader h;
+    h.file = file;
+    const PixelDataAt at = FindPixelData(file, uint64_t(in.tell()), DcmXfer(ds.getOriginalXfer()).isBigEndian());
+    if (at.found && !at.complete)
+    {
+      throw Failure(what + cut);
+    }
+    h.pixelData = at.found;
+    OFString sopClass, series;
+    Uint16   rows = 0, columns = 0;
+    ds.findAndGetOFString(DCM_SOPClassUID, sopClass);
+    ds.findAndGetOFString(DCM_SeriesInstanceUID, series);
+    ds.findAndGetUint16(DCM_Rows, rows);
+    ds.findAndGetUint16(DCM_Columns, columns);
+    h.seriesUid = series.c_str();
+    const bool imageClass = std::any_of(dcmImageSOPClassUIDs,
+                                        dcmImageSOPClassUIDs + numberOfDcmImageSOPClassUIDs,
+                                        [&](const char * uid) { return uid && sopClass == uid; });
+    h.image = imageClass && rows > 0 && columns > 0;
+    headers.push_back(std::move(h));
+  }
+  return headers;
 }
 
 std::string

@@ -50,6 +50,28 @@ DicomHeaderModeName(DicomHeaderMode mode);
 void
 CheckDicomPixelData(const std::string & file);
 
+/** What a file of a directory that starts as DICOM says of itself (CheckDicomHeaders). */
+struct DicomFileHeader
+{
+  std::string file;
+  std::string seriesUid;          // Series Instance UID
+  bool        image{ false };     // image storage: an image SOP Class, Rows and Columns
+  bool        pixelData{ false }; // a Pixel Data element after the header
+};
+
+/** Whether `file` starts as DICOM: a preamble and "DICM", or a data set whose first tag is of group 0002
+ * or 0008. */
+bool
+StartsAsDicom(const std::string & file);
+
+/** The headers (up to the pixel data, which is not read) of the files of `directory` (not of its
+ * subdirectories) that start as DICOM, sorted by name. Refuses (Failure naming the file) one cut short
+ * inside its header (or in the header of its pixel data): GDCM's series scan aborts the program on such
+ * a file, so this runs before it. Files that do not start as DICOM, or whose header DCMTK cannot read
+ * for another reason, are left out. */
+std::vector<DicomFileHeader>
+CheckDicomHeaders(const std::string & directory);
+
 /** The header of every file of `files` (in that order: the volume's slices), pixel data excluded, as the
  * value of the "DICOM Header" metadata pair (docs/format.md): what is equal in all files once, the rest
  * per file. Each file's pixel data is checked first (CheckDicomPixelData). */

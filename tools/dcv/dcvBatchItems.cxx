@@ -130,8 +130,35 @@ ListDirectory(const fs::path & tree, const fs::path & directory, const fs::path 
     }
   }
   std::set<std::string> dicom;
+  std::string           cut;
+  if (!others.empty())
+  {
+    try
+    {
+      CheckDicomHeaders(directory.string());
+    }
+    catch (const Failure & e)
+    {
+      cut = e.what();
+    }
+  }
+  if (!cut.empty())
+  {
+    // GDCM's scan would abort on that file, so the directory's series are not listed: it fails as one item,
+    // the others go on.
+    Item item;
+    item.path = directory.string();
+    item.relative = relative;
+    item.refused = cut;
+    items.push_back(item);
+    for (const auto & name : others)
+    {
+      if (StartsAsDicom((directory / name).string()))
+        dicom.insert(name);
+    }
+  }
   // GDCM's series scan is run only where a file is DICOM: it warns on a directory without any.
-  const bool hasDicom = !others.empty() && [&] {
+  const bool hasDicom = cut.empty() && !others.empty() && [&] {
     const auto gdcm = GDCM().newImageIO();
     return std::any_of(others.begin(), others.end(), [&](const std::string & name) {
       return gdcm->CanReadFile((directory / name).string().c_str());
@@ -139,7 +166,7 @@ ListDirectory(const fs::path & tree, const fs::path & directory, const fs::path 
   }();
   if (hasDicom)
   {
-    for (const auto & [uid, files] : ListDicomSeries(directory.string()))
+    for (const auto & [uid, files] : ListCheckedDicomSeries(directory.string()))
     {
       if (files.empty())
       {
@@ -186,6 +213,10 @@ ListItems(const fs::path & tree, const fs::path & outputDir, std::size_t & skipp
     Item &      item = items[i];
     std::string flat = item.relative;
     std::replace(flat.begin(), flat.end(), '/', '_');
+    if (flat == "." && item.series.empty())
+    {
+      flat = tree.filename().string(); // the tree's own DICOM files, not listed (a file cut short)
+    }
     item.name = item.series.empty() ? flat : (flat == "." ? item.series : flat + "_" + item.series);
     const auto [at, fresh] = taken.emplace(item.name, i);
     if (!fresh)
