@@ -409,13 +409,10 @@ TEST(ResidualLayer, ConstantSplineIsFilled)
   }
 }
 
-// Filling the budget never takes more than it, never decodes worse, and stops at once where the whole
-// image fits (6100 and 9000 bytes here: more target, no more bytes).
-TEST(ResidualLayer, FillStaysWithinTheBudgetAndDecodesNoWorse)
+/** The 8 corners of the grid at value 0: a constant spline, the residual is the volume. */
+dcv::Approximation
+CornersAtZero(const GridSize & g)
 {
-  const GridSize     g{ 64, 60, 8 };
-  const auto         image = ThickSlices(g);
-  std::vector<float> voxels(image->GetBufferPointer(), image->GetBufferPointer() + g.NumberOfVoxels());
   dcv::Approximation corners;
   corners.grid = g;
   for (int32_t z : { 0, g.z - 1 })
@@ -424,7 +421,18 @@ TEST(ResidualLayer, FillStaysWithinTheBudgetAndDecodesNoWorse)
         corners.points.push_back({ x, y, z });
   corners.values.assign(8, 0.0);
   corners.tetrahedra = dcv::Tetrahedralize(corners.points);
-  int filled = 0;
+  return corners;
+}
+
+// Filling the budget never takes more than it, never decodes worse, and stops at once where the whole
+// image fits (6100 and 9000 bytes here: more target, no more bytes).
+TEST(ResidualLayer, FillStaysWithinTheBudgetAndDecodesNoWorse)
+{
+  const GridSize           g{ 64, 60, 8 };
+  const auto               image = ThickSlices(g);
+  std::vector<float>       voxels(image->GetBufferPointer(), image->GetBufferPointer() + g.NumberOfVoxels());
+  const dcv::Approximation corners = CornersAtZero(g);
+  int                      filled = 0;
   for (std::size_t budget : { 1500, 2500, 4000, 6100, 9000 })
   {
     dcv::ResidualSearch search(voxels.data(), dcv::PixelType::Int16, corners, 1.0, budget);
@@ -460,25 +468,18 @@ DecompositionLevels(const std::vector<uint8_t> & codestream)
 // decode as the decoder decodes them, one level fewer each; none at all left is no coding.
 TEST(ResidualLayer, FewerResolutionsCodeFewerLevelsAndDecodeExactly)
 {
-  const GridSize     g{ 64, 60, 8 };
-  const auto         image = ThickSlices(g);
-  std::vector<float> voxels(image->GetBufferPointer(), image->GetBufferPointer() + g.NumberOfVoxels());
-  dcv::Approximation corners;
-  corners.grid = g;
-  for (int32_t z : { 0, g.z - 1 })
-    for (int32_t y : { 0, g.y - 1 })
-      for (int32_t x : { 0, g.x - 1 })
-        corners.points.push_back({ x, y, z });
-  corners.values.assign(8, 0.0);
-  corners.tetrahedra = dcv::Tetrahedralize(corners.points);
-  int most = -1;
+  const GridSize           g{ 64, 60, 8 };
+  const auto               image = ThickSlices(g);
+  std::vector<float>       voxels(image->GetBufferPointer(), image->GetBufferPointer() + g.NumberOfVoxels());
+  const dcv::Approximation corners = CornersAtZero(g);
+  int                      most = -1;
   for (int32_t fewer = 0; fewer <= 3; ++fewer)
   {
     dcv::ResidualSearch search(voxels.data(), dcv::PixelType::Int16, corners, 1.0, 3000);
-    const double error = search.Try({ dcv::Wavelet::Irreversible97, dcv::Arrangement::Mosaic, 1, fewer });
+    const double        error = search.Try({ dcv::Wavelet::Irreversible97, dcv::Arrangement::Mosaic, 1, fewer });
     ASSERT_TRUE(std::isfinite(error)) << fewer;
     const dcv::ResidualChoice best = std::move(search).Best();
-    const int levels = DecompositionLevels(best.codestream);
+    const int                 levels = DecompositionLevels(best.codestream);
     if (fewer == 0)
       most = levels;
     EXPECT_EQ(levels, most - fewer);
@@ -493,17 +494,10 @@ TEST(ResidualLayer, FewerResolutionsCodeFewerLevelsAndDecodeExactly)
 // the next trial starts where it would have.
 TEST(ResidualLayer, RestoreUndoesTheTrialsSinceSave)
 {
-  const GridSize     g{ 64, 60, 8 };
-  const auto         image = ThickSlices(g);
-  std::vector<float> voxels(image->GetBufferPointer(), image->GetBufferPointer() + g.NumberOfVoxels());
-  dcv::Approximation corners;
-  corners.grid = g;
-  for (int32_t z : { 0, g.z - 1 })
-    for (int32_t y : { 0, g.y - 1 })
-      for (int32_t x : { 0, g.x - 1 })
-        corners.points.push_back({ x, y, z });
-  corners.values.assign(8, 0.0);
-  corners.tetrahedra = dcv::Tetrahedralize(corners.points);
+  const GridSize            g{ 64, 60, 8 };
+  const auto                image = ThickSlices(g);
+  std::vector<float>        voxels(image->GetBufferPointer(), image->GetBufferPointer() + g.NumberOfVoxels());
+  const dcv::Approximation  corners = CornersAtZero(g);
   const dcv::ResidualCoding finer{ dcv::Wavelet::Irreversible97, dcv::Arrangement::Mosaic, 1 };
   const dcv::ResidualCoding coarser{ dcv::Wavelet::Irreversible97, dcv::Arrangement::Mosaic, 1, 2 };
   dcv::ResidualSearch       reference(voxels.data(), dcv::PixelType::Int16, corners, 1.0, 2000);
@@ -511,8 +505,8 @@ TEST(ResidualLayer, RestoreUndoesTheTrialsSinceSave)
   dcv::ResidualSearch search(voxels.data(), dcv::PixelType::Int16, corners, 1.0, 2000);
   search.Try(finer);
   dcv::ResidualSearch::State saved = search.Save();
-  const double           first = search.BestError();
-  const std::size_t      unused = search.Unused();
+  const double               first = search.BestError();
+  const std::size_t          unused = search.Unused();
   search.Try(coarser);
   search.Try({ dcv::Wavelet::Reversible53, dcv::Arrangement::Mosaic, 1 });
   search.Restore(std::move(saved));
@@ -673,8 +667,8 @@ template <typename T>
 void
 ExpectRowsAsAddResidual()
 {
-  const double lo = double(std::numeric_limits<T>::lowest()), hi = double(std::numeric_limits<T>::max());
-  std::vector<T> spline{ T(lo), T(lo + 1), T(0), T(1), T(hi / 2), T(hi - 1), T(hi) };
+  const double         lo = double(std::numeric_limits<T>::lowest()), hi = double(std::numeric_limits<T>::max());
+  std::vector<T>       spline{ T(lo), T(lo + 1), T(0), T(1), T(hi / 2), T(hi - 1), T(hi) };
   std::vector<int32_t> samples{ std::numeric_limits<int32_t>::min(), std::numeric_limits<int32_t>::max(), 0, 1, -1 };
   for (int32_t b : { 1 << 16, 1 << 17, 65535, 65536, 131071, 131072, 131073 })
     for (int32_t d : { -1, 0, 1 })

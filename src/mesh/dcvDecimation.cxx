@@ -31,7 +31,8 @@ RefinementEngine::Impl::RemovalCost(VertexId v)
 
 // The same from v's incident cells and their volumes (Tetrahedralization::IncidentVolumes).
 double
-RefinementEngine::Impl::RemovalCost(VertexId v, const std::vector<std::pair<Tetrahedralization::CellId, uint64_t>> & incident) const
+RefinementEngine::Impl::RemovalCost(VertexId                                                             v,
+                                    const std::vector<std::pair<Tetrahedralization::CellId, uint64_t>> & incident) const
 {
   // The errors summed in a fixed order, ascending (the incident cells come in the order of a walk that
   // starts wherever CGAL last pointed v), for reproducible keys. The volumes are integers whose sum (at

@@ -234,6 +234,22 @@ CompleteType2(DcmDataset & ds, int32_t z)
   }
 }
 
+/** The image pixel module of a decoded slice: 16 bits allocated, the encoding the decoded range needs. */
+void
+PutPixelModule(DcmDataset & ds, const PixelEncoding & enc, int32_t columns, int32_t rows)
+{
+  Put(ds, DCM_SamplesPerPixel, "1");
+  Put(ds, DCM_PhotometricInterpretation, "MONOCHROME2");
+  Put(ds, DCM_Rows, std::to_string(rows));
+  Put(ds, DCM_Columns, std::to_string(columns));
+  Put(ds, DCM_BitsAllocated, "16");
+  Put(ds, DCM_BitsStored, std::to_string(enc.bitsStored));
+  Put(ds, DCM_HighBit, std::to_string(enc.bitsStored - 1));
+  Put(ds, DCM_PixelRepresentation, enc.isSigned ? "1" : "0");
+  Put(ds, DCM_RescaleIntercept, Decimal(enc.intercept));
+  Put(ds, DCM_RescaleSlope, Decimal(enc.slope));
+}
+
 void
 Derive(DcmDataset & ds, const std::string & series, const std::string & now, const std::string & derivation,
        double ratio, const PixelEncoding & enc, int32_t columns, int32_t rows, const std::string & software)
@@ -283,16 +299,7 @@ Derive(DcmDataset & ds, const std::string & series, const std::string & now, con
   const std::string versions = Get(ds, DCM_SoftwareVersions);
   Put(ds, DCM_SoftwareVersions, versions.empty() ? software : versions + "\\" + software);
   // The pixel module as the decoded values are stored; values in stored units of the original pixels go.
-  Put(ds, DCM_SamplesPerPixel, "1");
-  Put(ds, DCM_PhotometricInterpretation, "MONOCHROME2");
-  Put(ds, DCM_Rows, std::to_string(rows));
-  Put(ds, DCM_Columns, std::to_string(columns));
-  Put(ds, DCM_BitsAllocated, "16");
-  Put(ds, DCM_BitsStored, std::to_string(enc.bitsStored));
-  Put(ds, DCM_HighBit, std::to_string(enc.bitsStored - 1));
-  Put(ds, DCM_PixelRepresentation, enc.isSigned ? "1" : "0");
-  Put(ds, DCM_RescaleIntercept, Decimal(enc.intercept));
-  Put(ds, DCM_RescaleSlope, Decimal(enc.slope));
+  PutPixelModule(ds, enc, columns, rows);
   for (const DcmTagKey & gone : { DCM_SmallestImagePixelValue,
                                   DCM_LargestImagePixelValue,
                                   DCM_SmallestPixelValueInSeries,
@@ -495,16 +502,7 @@ WriteDicomSeries(const FileHeader & header, std::size_t compressedBytes,
         }
         Put(ds, DCM_ImagePositionPatient, position);
         Put(ds, DCM_SliceThickness, get("SliceThickness", Decimal(header.spacing[2])));
-        Put(ds, DCM_SamplesPerPixel, "1");
-        Put(ds, DCM_PhotometricInterpretation, "MONOCHROME2");
-        Put(ds, DCM_Rows, std::to_string(ny));
-        Put(ds, DCM_Columns, std::to_string(nx));
-        Put(ds, DCM_BitsAllocated, "16");
-        Put(ds, DCM_BitsStored, std::to_string(enc.bitsStored));
-        Put(ds, DCM_HighBit, std::to_string(enc.bitsStored - 1));
-        Put(ds, DCM_PixelRepresentation, enc.isSigned ? "1" : "0");
-        Put(ds, DCM_RescaleIntercept, Decimal(enc.intercept));
-        Put(ds, DCM_RescaleSlope, Decimal(enc.slope));
+        PutPixelModule(ds, enc, nx, ny);
         if (!ct)
           Put(ds, DCM_RescaleType, "US");
       }
