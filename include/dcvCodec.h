@@ -22,6 +22,7 @@
 #include "dcvApproximation.h"
 #include "dcvFileFormat.h"
 #include "dcvResidualLayer.h"
+#include "dcvVideoLayer.h"
 
 #include <cstdint>
 #include <string>
@@ -94,13 +95,16 @@ DecodeVolume(const CompressedFile & file, T * out, const DecodeLimits & limits =
   if (h.residualStep > 0.0)
   {
     const T value = ConvertValue<T>(one);
-    DecodeResidualRows(
-      h.residualLayer, h.size, file.name, h.residualLevels, [&](int32_t y, int32_t z, const int32_t * row) {
-        T * voxels = out + h.size.Offset(0, y, z);
-        if (constant)
-          std::fill_n(voxels, h.size.x, value);
-        detail::AddResidualToRow(h.residualStep, row, voxels, uint64_t(h.size.x));
-      });
+    auto    add = [&](int32_t y, int32_t z, const int32_t * row) {
+      T * voxels = out + h.size.Offset(0, y, z);
+      if (constant)
+        std::fill_n(voxels, h.size.x, value);
+      detail::AddResidualToRow(h.residualStep, row, voxels, uint64_t(h.size.x));
+    };
+    if (h.videoLayer)
+      DecodeVideoRows(h.residualLayer, h.size, file.name, add);
+    else
+      DecodeResidualRows(h.residualLayer, h.size, file.name, h.residualLevels, add);
   }
 }
 

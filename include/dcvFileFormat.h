@@ -141,6 +141,9 @@ struct FileHeader
   /** The spline is the constant quantizationOrigin (the 8 corners, all at that value) under a residual
    * layer: no point is coded (form bit 0); the payload is empty, numberOfPoints 8. */
   bool constantSpline{ false };
+  /** The residual layer is an HEVC stream (form bit 3, dcvVideoLayer.h), not JPEG 2000: only over a constant
+   * spline, without the inter-slice wavelet. */
+  bool videoLayer{ false };
 };
 
 /** The metadata key whose value holds the headers of the DICOM files a volume came from (docs/format.md,

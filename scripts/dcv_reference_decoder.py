@@ -73,6 +73,7 @@ FLAG_FORM = 128
 FORM_CONSTANT = 1  # no points: the spline is the constant q0
 FORM_UNIT_STEP = 2  # the residual step is 1, not stored
 FORM_COMPACT = 4  # the residual layer's codestream is stored compact
+FORM_VIDEO = 8  # the residual layer is an HEVC stream (the video layer)
 # Section "Header", direction code: row r is +-1 at column AXIS_PERMUTATIONS[code & 7][r].
 AXIS_PERMUTATIONS = ((0, 1, 2), (0, 2, 1), (1, 0, 2), (1, 2, 0), (2, 0, 1), (2, 1, 0))
 # Section "Inter-slice wavelet": band weights in 1/4096 (low band after l levels, high band of level k).
@@ -225,8 +226,11 @@ def parse_container(data):
     form = 0
     if flags & FLAG_FORM:
         (form,) = f.unpack("B", "header")
-        if form & ~(FORM_CONSTANT | FORM_UNIT_STEP | FORM_COMPACT):
+        if form & ~(FORM_CONSTANT | FORM_UNIT_STEP | FORM_COMPACT | FORM_VIDEO):
             raise DamagedFile("unknown form bits %d" % form)
+        if form & FORM_VIDEO and (not form & FORM_CONSTANT or form & FORM_COMPACT or flags & FLAG_INTER_SLICE):
+            raise DamagedFile("a video layer (form bit 3) needs a constant spline (form bit 0), no compact form "
+                              "and no inter-slice wavelet")
     if form & FORM_CONSTANT:
         (q0,) = f.unpack("d", "header")
         if not math.isfinite(q0):
@@ -647,6 +651,53 @@ def inverse_inter_slice(samples, size, levels):
     return out
 
 
+def decode_video_layer(h):
+    """Section "Video layer": the samples r in grid order (x fastest), decoded by libde265's dec265
+    (libde265-examples) from the HEVC stream: picture z's top-left size x by size y samples are slice z."""
+    import os
+    import re
+    import shutil
+    import subprocess
+    import tempfile
+    tool = shutil.which("libde265-dec265") or shutil.which("dec265")
+    if tool is None:
+        raise DamagedFile("dec265 (libde265-examples) is needed to decode the video layer")
+    sx, sy, sz = h["size"]
+    work = tempfile.mkdtemp(prefix="dcv-video-")
+    try:
+        stream, yuv = os.path.join(work, "layer.hevc"), os.path.join(work, "layer.yuv")
+        with open(stream, "wb") as out:
+            out.write(h["residual_layer"])
+        run = subprocess.run([tool, "-q", "-d", "-o", yuv, stream], capture_output=True, text=True)
+        fields = dict(re.findall(r"^\s*(pic_width_in_luma_samples|pic_height_in_luma_samples|bit_depth_luma|"
+                                 r"chroma_format_idc)\s*:\s*(\d+)", run.stdout, re.M))
+        if run.returncode != 0 or len(fields) < 4 or not os.path.exists(yuv):
+            raise DamagedFile("damaged video layer (dec265 failed)")
+        width, height = int(fields["pic_width_in_luma_samples"]), int(fields["pic_height_in_luma_samples"])
+        depth, chroma = int(fields["bit_depth_luma"]), int(fields["chroma_format_idc"])
+        if chroma != 0 or not 8 <= depth <= 12 or width < sx or height < sy:
+            raise DamagedFile("damaged video layer (not monochrome pictures of the slices)")
+        with open(yuv, "rb") as f:
+            data = f.read()
+    finally:
+        shutil.rmtree(work, ignore_errors=True)
+    size = 1 if depth == 8 else 2
+    if len(data) % sz:
+        raise DamagedFile("damaged video layer (%d pictures for %d slices?)" % (len(data), sz))
+    frame = len(data) // sz  # dec265 may add neutral chroma planes after each monochrome picture
+    if frame < width * height * size:
+        raise DamagedFile("damaged video layer (pictures do not hold the slices)")
+    samples = []
+    for z in range(sz):
+        for y in range(sy):
+            row = z * frame + y * width * size
+            if size == 1:
+                samples.extend(data[row:row + sx])
+            else:
+                samples.extend(struct.unpack("<%dH" % sx, data[row:row + 2 * sx]))
+    return samples
+
+
 def decode_residual_layer(h):
     """Section "Residual layer": the samples r in grid order (x fastest), decoded by OpenJPEG's
     opj_decompress (libopenjp2-tools) from the codestream, then taken out of the slice mosaic."""
@@ -654,6 +705,8 @@ def decode_residual_layer(h):
     import shutil
     import subprocess
     import tempfile
+    if h["form"] & FORM_VIDEO:
+        return decode_video_layer(h)
     if shutil.which("opj_decompress") is None:
         raise DamagedFile("opj_decompress (libopenjp2-tools) is needed to decode the residual layer")
     sx, sy, sz = h["size"]

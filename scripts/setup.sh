@@ -11,6 +11,9 @@ packages=(
   zlib1g-dev              # crc32 of the .dcv files
   libopenjp2-7-dev        # JPEG 2000 of the residual layer
   libopenjp2-tools        # opj_decompress: the reference decoder's residual layer
+  libx265-dev             # HEVC of the video layer (encoding)
+  libde265-dev            # HEVC of the video layer (decoding)
+  libde265-examples       # dec265: the reference decoder's video layer
   libtbb-dev              # the encoder's threads (oneTBB)
   libcli11-dev            # dcv's arguments, and those of the Slicer modules
   libexpat1-dev           # the Slicer modules read their own module description (XML)

@@ -17,6 +17,7 @@
  *=========================================================================*/
 #include "dcvCodec.h"
 #include "dcvResidualLayer.h"
+#include "dcvVideoLayer.h"
 #include "dcvArithmeticCoder.h"
 #include "dcvFileFormat.h"
 #include "dcvMemory.h"
@@ -306,7 +307,9 @@ Decode(const CompressedFile & file, const DecodeLimits & limits)
   Approximation a = DecodeMesh(file, limits);
   if (h.residualStep > 0.0)
   {
-    a.residual = { h.residualStep, DecodeResidualLayer(h.residualLayer, h.size, file.name, h.residualLevels) };
+    a.residual = { h.residualStep,
+                   h.videoLayer ? DecodeVideoLayer(h.residualLayer, h.size, file.name)
+                                : DecodeResidualLayer(h.residualLayer, h.size, file.name, h.residualLevels) };
   }
   return a;
 }

@@ -20,6 +20,7 @@
 #include "dcvParallel.h"
 #include "dcvRateControl.h"
 #include "dcvResidualLayer.h"
+#include "dcvVideoLayer.h"
 #include "dcvInterSliceWavelet.h"
 #include "dcvMemory.h"
 
@@ -314,20 +315,47 @@ struct CornersCandidate
   Approximation                   spline;
   double                          step{ 0.0 };
   std::unique_ptr<ResidualSearch> search; // none: no room for a codestream, or a constant volume
+  FileHeader                      videoHeader; // the corners under a video layer (form bits 0 and 3)
+  VideoChoice                     video;       // no stream: none fits
 
   double
   Error() const
   {
-    return search ? search->BestError() : std::numeric_limits<double>::infinity();
+    const double layer = search ? search->BestError() : std::numeric_limits<double>::infinity();
+    return video.stream.empty() ? layer : std::min(layer, video.squaredError);
   }
 };
+
+/** Codes the video layer over the constant spline at the input's minimum (HEVC samples are unsigned), in
+ * the bytes a file of `fileBytes` leaves it. */
+void
+TryVideo(const EncoderInput & input, CornersCandidate & candidate, std::size_t fileBytes, double minimum,
+         double maximum, const std::function<void(double)> & tried)
+{
+  const PixelType type = input.header.pixelType;
+  const double    step = VideoStep(double(maximum) - double(minimum), IsInteger(type));
+  FileHeader &    h = candidate.videoHeader;
+  h = candidate.header;
+  h.videoLayer = true;
+  h.quantizationOrigin = minimum;
+  const std::size_t room = LayerRoom(h, step, fileBytes, 0);
+  if (room < MinimumCodestream)
+    return;
+  candidate.video = ChooseVideoLayer(input.voxels, type, input.header.size, minimum, step, room, tried);
+  if (candidate.video.stream.empty())
+    return;
+  // Kept when it decodes closer than every other candidate (ChooseLayers); the error the caller reports
+  // is the best of both layers.
+  if (tried)
+    tried(candidate.Error());
+}
 
 /** Codes the residual layer over the corners. Done before the points, whose rate control stops as soon
  * as they cannot reach its error. `tried`, where given, is called after each trial with the best error
  * so far (the most the candidate's error will be). */
 CornersCandidate
 TryCorners(const EncoderInput & input, const FileHeader & header, std::size_t fileBytes, double minimum, double maximum,
-           double peak, const std::function<void(double)> & tried = {})
+           double peak, bool video, const std::function<void(double)> & tried = {})
 {
   const PixelType  type = input.header.pixelType;
   const double     step = ResidualStep(peak, IsInteger(type));
@@ -418,6 +446,14 @@ TryCorners(const EncoderInput & input, const FileHeader & header, std::size_t fi
   const auto & spacing = input.header.spacing;
   if (input.header.size.z > 1 && spacing[2] >= ThickSlices * std::max(spacing[0], spacing[1]))
     trial({ Wavelet::Irreversible97, Arrangement::Components, levels });
+  if (video)
+  {
+    const double layer = search.BestError();
+    TryVideo(input, candidate, fileBytes, minimum, maximum, [&](double error) {
+      if (tried)
+        tried(std::min(layer, error));
+    });
+  }
   return candidate;
 }
 
@@ -476,10 +512,29 @@ ChooseLayers(const EncoderInput & input, std::size_t fileBytes, bool pointsAband
                               : points.get();
   if (leader && leader->BestError() < bestError && leader->Unused() > slack)
     leader->Fill(slack, 2);
-  // The points alone, the points with their layer, or the corners' layer: the first of the closest.
+  // The points alone, the points with their layer, the corners' layer or the video layer: the first of the
+  // closest.
   const double withLayer = points ? points->BestError() : std::numeric_limits<double>::infinity();
   const double cornersError = corners.search ? corners.search->BestError() : std::numeric_limits<double>::infinity();
-  if (cornersError < std::min(bestError, withLayer))
+  const double videoError =
+    corners.video.stream.empty() ? std::numeric_limits<double>::infinity() : corners.video.squaredError;
+  if (videoError < std::min({ bestError, withLayer, cornersError }))
+  {
+    VideoChoice & v = corners.video;
+    r.header.constantSpline = true;
+    r.header.videoLayer = true;
+    r.header.scale = { { 1, 1, 1 } };
+    r.header.quantizationOrigin = corners.videoHeader.quantizationOrigin;
+    r.header.residualStep = v.step;
+    r.header.residualLevels = 0;
+    r.quantizationStep = 1.0;
+    r.squaredError = v.squaredError;
+    r.approximation = Corners(input.header.size, r.header.scale, r.header.quantizationOrigin);
+    r.approximation.residual = { v.step, DecodeVideoLayer(v.stream, input.header.size, "video layer") };
+    r.header.residualLayer = std::move(v.stream);
+    payload.clear();
+  }
+  else if (cornersError < std::min(bestError, withLayer))
   {
     keep(*corners.search, std::move(corners.spline), {}, corners.step, corners.header);
   }
@@ -565,7 +620,8 @@ Run(const EncoderInput & input, const EncoderOptions & o, bool coded, std::vecto
       return WithThreads(threads, [&] {
         const auto       start = std::chrono::steady_clock::now();
         CornersCandidate c = TryCorners(
-          input, header, std::size_t(fileBytes), range.first, range.second, parameters.peak, [&](double error) {
+          input, header, std::size_t(fileBytes), range.first, range.second, parameters.peak, o.videoLayer,
+          [&](double error) {
             cornersBound.store(error);
           });
         r.timings.residualLayer += std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();

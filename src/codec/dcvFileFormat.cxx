@@ -45,6 +45,7 @@ constexpr uint8_t FlagForm = 128;         // a form byte follows the scale (with
 constexpr uint8_t FormConstant = 1;       // no points: the spline is the constant q0; no q, n, L, payload
 constexpr uint8_t FormUnitStep = 2;       // the residual step is 1 and is not stored
 constexpr uint8_t FormCompact = 4;        // the residual layer is stored compact (dcvResidualLayer.h, CompactLayer)
+constexpr uint8_t FormVideo = 8;          // the residual layer is an HEVC stream (dcvVideoLayer.h)
 
 /** The permutations of the axes a direction code names: row r of the matrix is +-1 at column
  * Permutations[code & 7][r]. */
@@ -286,11 +287,15 @@ SerializeFile(const FileHeader & h, const std::vector<uint8_t> & payload)
   {
     throw std::invalid_argument("a .dcv constant spline needs a residual layer and no payload");
   }
+  if (h.videoLayer && (!residual || !h.constantSpline || h.residualLevels > 0))
+  {
+    throw std::invalid_argument("a .dcv video layer needs a constant spline and no inter-slice wavelet");
+  }
   // Every residual layer comes with a form byte: the layer's fields as short as they can be.
   std::vector<uint8_t> compact;
-  const bool           compacted = residual && CompactLayer(h.residualLayer, h.size, compact);
+  const bool           compacted = residual && !h.videoLayer && CompactLayer(h.residualLayer, h.size, compact);
   const uint8_t form = uint8_t((h.constantSpline ? FormConstant : 0) | (h.residualStep == 1.0 ? FormUnitStep : 0) |
-                               (compacted ? FormCompact : 0));
+                               (compacted ? FormCompact : 0) | (h.videoLayer ? FormVideo : 0));
   const std::vector<uint8_t> & layer = compacted ? compact : h.residualLayer;
   w.Bytes(Magic, 4);
   w.U8(FileHeader::Version);
@@ -467,11 +472,17 @@ ParseFile(const std::vector<uint8_t> & bytes, const std::string & name, FileHead
       throw FormatError(name + ": invalid voxel spacing");
   }
   const uint8_t form = (flags & FlagForm) ? r.U8("header") : 0;
-  if (form & ~(FormConstant | FormUnitStep | FormCompact))
+  if (form & ~(FormConstant | FormUnitStep | FormCompact | FormVideo))
   {
     throw FormatError(name + ": unknown form bits " + std::to_string(form));
   }
+  if ((form & FormVideo) && (!(form & FormConstant) || (form & FormCompact) || (flags & FlagInterSlice)))
+  {
+    throw FormatError(name + ": a video layer (form bit 3) needs a constant spline (form bit 0), no compact form "
+                             "and no inter-slice wavelet");
+  }
   h.constantSpline = (form & FormConstant) != 0;
+  h.videoLayer = (form & FormVideo) != 0;
   h.quantizationOrigin = r.F64("header");
   if (h.constantSpline)
   {

@@ -16,6 +16,7 @@
  *
  *=========================================================================*/
 #include "dcvVersion.h"
+#include "dcvVideoLayer.h"
 
 #include "itkConfigure.h"
 
@@ -31,7 +32,8 @@ LibraryVersions()
 {
   // ITK_VERSION_STRING is major.minor only: the patch level is in its own macro.
   return "ITK " + std::to_string(ITK_VERSION_MAJOR) + "." + std::to_string(ITK_VERSION_MINOR) + "." +
-         std::to_string(ITK_VERSION_PATCH) + ", CGAL " + CGAL_VERSION_STR + ", OpenJPEG " + opj_version();
+         std::to_string(ITK_VERSION_PATCH) + ", CGAL " + CGAL_VERSION_STR + ", OpenJPEG " + opj_version() +
+         ", " + VideoLibraryVersions();
 }
 
 } // namespace dcv

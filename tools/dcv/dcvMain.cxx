@@ -262,8 +262,11 @@ AddTargetOptions(CLI::App & command, EncoderOptions & e)
                ->capture_default_str();
   t.bpv->excludes(t.psnr)->excludes(t.points);
   t.psnr->excludes(t.points);
+  command.add_flag("!--no-residual-layer",
+                   e.residualLayer,
+                   "With --bpv, points only: neither a JPEG 2000 residual layer nor a video layer is tried");
   command.add_flag(
-    "!--no-residual-layer", e.residualLayer, "With --bpv, points only: no JPEG 2000 residual layer is tried");
+    "!--no-video-layer", e.videoLayer, "With --bpv, no video layer (HEVC) is tried: the points and JPEG 2000 only");
   command.add_option("--step",
                      e.quantizationStep,
                      "Quantization step of the values (0: with --bpv the best of 1, 2 and 4 times 1/64 of the peak, "
@@ -287,6 +290,8 @@ FormatResidualLayer(const FileHeader & header)
 {
   if (header.residualLayer.empty())
     return "none";
+  if (header.videoLayer)
+    return std::to_string(header.residualLayer.size()) + " bytes (an HEVC stream)";
   return std::to_string(StoredLayerBytes(header.residualLayer, header.size)) + " bytes (a JPEG 2000 codestream of " +
          std::to_string(header.residualLayer.size()) + ")";
 }

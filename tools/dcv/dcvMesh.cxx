@@ -110,7 +110,9 @@ Mesh(const MeshOptions & m)
     if (!file.header.residualLayer.empty())
     {
       std::cout << "residual layer: not part of the mesh, which is the spline ("
-                << StoredLayerBytes(file.header.residualLayer, file.header.size) << " bytes of the file)\n";
+                << (file.header.videoLayer ? file.header.residualLayer.size()
+                                           : StoredLayerBytes(file.header.residualLayer, file.header.size))
+                << " bytes of the file)\n";
     }
   }
 }

@@ -1,0 +1,485 @@
+/*=========================================================================
+ *
+ *  Copyright NumFOCUS
+ *
+ *  Licensed under the Apache License, Version 2.0 (the "License");
+ *  you may not use this file except in compliance with the License.
+ *  You may obtain a copy of the License at
+ *
+ *         http://www.apache.org/licenses/LICENSE-2.0.txt
+ *
+ *  Unless required by applicable law or agreed to in writing, software
+ *  distributed under the License is distributed on an "AS IS" BASIS,
+ *  WITHOUT WARRANTIES OR CONDITIONS OF ANY KIND, either express or implied.
+ *  See the License for the specific language governing permissions and
+ *  limitations under the License.
+ *
+ *=========================================================================*/
+#include "dcvVideoLayer.h"
+
+#include "../core/dcvParallel.h"
+
+#include <libde265/de265.h>
+#include <x265.h>
+
+#include <algorithm>
+#include <cmath>
+#include <limits>
+#include <memory>
+#include <stdexcept>
+
+namespace dcv
+{
+
+namespace
+{
+/** x265's speed preset of the stream kept: "slower" decodes closer than "slow" at the same size (ct-avm-4mm
+ * at --crf 26.6: 18,079 bytes and 42.98 dB against 18,987 and 42.43) and takes about 4 times as long. */
+constexpr const char * Preset = "slower";
+
+/** The preset that looks for the rate factor first: "medium" is about 8 times as fast as "slower", and its
+ * stream's size follows the factor as the slower one's does. */
+constexpr const char * SearchPreset = "medium";
+
+/** The rate factor for a stream of `target` bytes, from the sizes of the streams tried so far: the secant of
+ * log size against the factor through the last two (the first step at 6 factor steps a halving, as on the
+ * dev volumes), within the bracket of the smallest factor whose stream fitted and the largest whose did not. */
+class RateFactorSearch
+{
+public:
+  RateFactorSearch(double target, double slope = 1.0 / 6.0)
+    : logTarget(std::log2(target))
+    , slope(slope)
+  {}
+  double
+  Slope() const
+  {
+    return slope;
+  }
+  /** Records a trial; returns the next factor, or a negative number when the bracket is closed. */
+  double
+  Next(double crf, std::size_t bytes, bool fits)
+  {
+    const double bits = std::log2(double(std::max<std::size_t>(bytes, 1)));
+    if (fits)
+      fitCrf = std::min(fitCrf, crf);
+    else
+      overCrf = std::max(overCrf, crf);
+    // Within half a step the size moves by noise as much as by the factor (ct-avm-4mm: 18,446 bytes at
+    // 26.08, 18,344 at 26.28, 18,787 at 25.87): the slope is kept from farther trials.
+    if (tried && std::abs(crf - lastCrf) >= 0.5 && lastBits != bits)
+      slope = std::clamp((lastBits - bits) / (crf - lastCrf), 1.0 / 30.0, 1.0);
+    tried = true;
+    lastCrf = crf;
+    lastBits = bits;
+    const double lo = overCrf >= 0.0 ? overCrf : 0.0, hi = fitCrf <= 51.0 ? fitCrf : 51.0;
+    if (hi - lo < 0.02)
+      return -1.0;
+    const double margin = overCrf >= 0.0 && fitCrf <= 51.0 ? 0.1 * (hi - lo) : 0.0;
+    return std::round(std::clamp(crf + (bits - logTarget) / slope, lo + margin, hi - margin) * 100.0) / 100.0;
+  }
+
+private:
+  double logTarget;
+  double fitCrf{ 52.0 };  // the smallest factor whose stream fits
+  double overCrf{ -1.0 }; // the largest whose stream does not
+  double lastCrf{ 0.0 }, lastBits{ 0.0 };
+  double slope; // of log2 size per step of the factor
+  bool   tried{ false };
+};
+
+/** x265's frame threads, fixed so that the stream does not depend on the machine (1, 2 and 3 gave the
+ * same stream on norm-256; the worker threads never change it). */
+constexpr int FrameThreads = 2;
+
+/** The largest coding tree unit the slices hold (x265 refuses pictures smaller than one). */
+int32_t
+CodingTreeUnit(const GridSize & grid)
+{
+  const int32_t side = std::min(grid.x, grid.y);
+  return side >= 64 ? 64 : side >= 32 ? 32 : 16;
+}
+
+/** Picture sides: the slice's, rounded up to whole coding tree units. Debian's x265 3.5 aborts on some
+ * 10 and 12-bit picture sizes that are not (48 x 64 at a CTU of 32), never on whole units. */
+int32_t
+Padded(int32_t side, int32_t ctu)
+{
+  return (side + ctu - 1) / ctu * ctu;
+}
+
+struct ParamDeleter
+{
+  const x265_api * api;
+  void
+  operator()(x265_param * p) const
+  {
+    api->param_free(p);
+  }
+};
+struct PictureDeleter
+{
+  const x265_api * api;
+  void
+  operator()(x265_picture * p) const
+  {
+    api->picture_free(p);
+  }
+};
+struct EncoderDeleter
+{
+  const x265_api * api;
+  void
+  operator()(x265_encoder * e) const
+  {
+    api->encoder_close(e);
+  }
+};
+struct DecoderDeleter
+{
+  void
+  operator()(de265_decoder_context * d) const
+  {
+    de265_free_decoder(d);
+  }
+};
+
+void
+Append(std::vector<uint8_t> & stream, const x265_nal * nals, uint32_t count)
+{
+  for (uint32_t i = 0; i < count; ++i)
+    stream.insert(stream.end(), nals[i].payload, nals[i].payload + nals[i].sizeBytes);
+}
+
+/** One slice as a picture of `width` x `height` samples of type T, the slice's edges repeated into the
+ * padding (cheapest to code). */
+template <typename T>
+void
+FillPicture(const std::vector<uint16_t> & samples, const GridSize & grid, int32_t z, int32_t width, int32_t height,
+            std::vector<T> & picture)
+{
+  picture.resize(std::size_t(width) * std::size_t(height));
+  for (int32_t y = 0; y < height; ++y)
+  {
+    const uint16_t * row = samples.data() + grid.Offset(0, std::min(y, grid.y - 1), z);
+    T *              out = picture.data() + std::size_t(y) * std::size_t(width);
+    for (int32_t x = 0; x < width; ++x)
+      out[x] = T(row[std::min(x, grid.x - 1)]);
+  }
+}
+} // namespace
+
+int32_t
+VideoDepth(double largest)
+{
+  for (int32_t depth : { 8, 10, 12 })
+    if (largest <= double((1 << depth) - 1))
+      return depth;
+  return 0;
+}
+
+double
+VideoStep(double range, bool integer)
+{
+  const double most = double((1 << VideoMaximumDepth) - 1);
+  if (!(range > most))
+    return 1.0;
+  const double step = range / most;
+  return integer ? std::ceil(step) : step;
+}
+
+namespace
+{
+std::vector<uint8_t>
+Encode(const std::vector<uint16_t> & samples, const GridSize & grid, int32_t depth, double crf, const char * preset);
+} // namespace
+
+std::vector<uint8_t>
+EncodeVideoLayer(const std::vector<uint16_t> & samples, const GridSize & grid, int32_t depth, double crf)
+{
+  return Encode(samples, grid, depth, crf, Preset);
+}
+
+namespace
+{
+std::vector<uint8_t>
+Encode(const std::vector<uint16_t> & samples, const GridSize & grid, int32_t depth, double crf, const char * preset)
+{
+  if (depth != 8 && depth != 10 && depth != 12)
+    throw std::invalid_argument("EncodeVideoLayer: the depth must be 8, 10 or 12");
+  if (samples.size() != grid.NumberOfVoxels())
+    throw std::invalid_argument("EncodeVideoLayer: one sample a voxel");
+  const x265_api * api = x265_api_get(depth);
+  if (api == nullptr)
+    throw std::runtime_error("libx265 has no " + std::to_string(depth) + "-bit encoder");
+  std::unique_ptr<x265_param, ParamDeleter> param(api->param_alloc(), ParamDeleter{ api });
+  if (!param || api->param_default_preset(param.get(), preset, "psnr") < 0)
+    throw std::runtime_error("libx265 refused its preset");
+  const int32_t     ctu = CodingTreeUnit(grid);
+  const int32_t     width = Padded(grid.x, ctu), height = Padded(grid.y, ctu);
+  const std::string pools = std::to_string(std::max(1u, CurrentThreads()));
+  x265_param &      p = *param;
+  p.logLevel = X265_LOG_NONE;
+  p.internalCsp = X265_CSP_I400;
+  p.internalBitDepth = depth;
+  p.sourceWidth = width;
+  p.sourceHeight = height;
+  p.fpsNum = 25;
+  p.fpsDenom = 1;
+  p.totalFrames = grid.z;
+  p.maxCUSize = uint32_t(ctu);
+  p.maxTUSize = std::min<uint32_t>(p.maxTUSize, uint32_t(ctu));
+  p.bEmitInfoSEI = 0;
+  p.bRepeatHeaders = 0;
+  p.bAnnexB = 1;
+  p.frameNumThreads = FrameThreads;
+  p.lookaheadSlices = 0;
+  p.numaPools = pools.c_str();
+  p.rc.rateControlMode = X265_RC_CRF;
+  p.rc.rfConstant = std::clamp(crf, 0.0, 51.0);
+  p.bLossless = crf == VideoLossless;
+  std::unique_ptr<x265_encoder, EncoderDeleter> encoder(api->encoder_open(&p), EncoderDeleter{ api });
+  if (!encoder)
+    throw std::runtime_error("libx265 cannot open an encoder for " + std::to_string(width) + "x" +
+                             std::to_string(height) + " " + std::to_string(depth) + "-bit slices");
+  std::unique_ptr<x265_picture, PictureDeleter> picture(api->picture_alloc(), PictureDeleter{ api });
+  api->picture_init(&p, picture.get());
+  picture->bitDepth = depth;
+  picture->colorSpace = X265_CSP_I400;
+  std::vector<uint8_t> stream;
+  x265_nal *           nals = nullptr;
+  uint32_t             count = 0;
+  if (api->encoder_headers(encoder.get(), &nals, &count) < 0)
+    throw std::runtime_error("libx265 cannot write the stream's headers");
+  Append(stream, nals, count);
+  std::vector<uint8_t>  bytes;
+  std::vector<uint16_t> words;
+  for (int32_t z = 0; z <= grid.z; ++z)
+  {
+    x265_picture * in = nullptr;
+    if (z < grid.z)
+    {
+      if (depth == 8)
+      {
+        FillPicture(samples, grid, z, width, height, bytes);
+        picture->planes[0] = bytes.data();
+        picture->stride[0] = width;
+      }
+      else
+      {
+        FillPicture(samples, grid, z, width, height, words);
+        picture->planes[0] = words.data();
+        picture->stride[0] = width * 2;
+      }
+      picture->pts = z;
+      in = picture.get();
+    }
+    // After the last slice, flush: the frames x265 still holds come out one a call.
+    for (;;)
+    {
+      const int got = api->encoder_encode(encoder.get(), &nals, &count, in, nullptr);
+      if (got < 0)
+        throw std::runtime_error("libx265 failed to code slice " + std::to_string(z));
+      Append(stream, nals, count);
+      if (in != nullptr || got == 0)
+        break;
+    }
+  }
+  return stream;
+}
+} // namespace
+
+ResidualSamples
+DecodeVideoLayer(const std::vector<uint8_t> & stream, const GridSize & grid, const std::string & name)
+{
+  ResidualSamples samples(grid.NumberOfVoxels());
+  DecodeVideoRows(stream, grid, name, [&](int32_t y, int32_t z, const int32_t * row) {
+    std::copy_n(row, grid.x, samples.data() + grid.Offset(0, y, z));
+  });
+  return samples;
+}
+
+void
+DecodeVideoRows(const std::vector<uint8_t> & stream, const GridSize & grid, const std::string & name,
+                const std::function<void(int32_t y, int32_t z, const int32_t * row)> & sink)
+{
+  std::unique_ptr<de265_decoder_context, DecoderDeleter> decoder(de265_new_decoder());
+  if (!decoder)
+    throw std::runtime_error(name + ": libde265 cannot open a decoder");
+  // A damaged picture is an error, not a picture to show.
+  de265_set_parameter_bool(decoder.get(), DE265_DECODER_PARAM_SUPPRESS_FAULTY_PICTURES, 1);
+  std::vector<int32_t> out(std::size_t(grid.x));
+  int32_t              z = 0;
+  auto            fail = [&](const std::string & what) { return FormatError(name + ": invalid video layer (" + what + ")"); };
+  auto            take = [&]() {
+    while (const de265_image * image = de265_get_next_picture(decoder.get()))
+    {
+      if (z >= grid.z)
+        throw fail("more pictures than the " + std::to_string(grid.z) + " slices");
+      if (de265_get_chroma_format(image) != de265_chroma_mono)
+        throw fail("not monochrome");
+      const int depth = de265_get_bits_per_pixel(image, 0);
+      if (depth < 8 || depth > VideoMaximumDepth)
+        throw fail(std::to_string(depth) + "-bit samples");
+      if (de265_get_image_width(image, 0) < grid.x || de265_get_image_height(image, 0) < grid.y)
+        throw fail("pictures smaller than the slices");
+      int             stride = 0;
+      const uint8_t * plane = de265_get_image_plane(image, 0, &stride);
+      for (int32_t y = 0; y < grid.y; ++y)
+      {
+        const uint8_t * row = plane + std::ptrdiff_t(y) * stride;
+        if (depth == 8)
+          for (int32_t x = 0; x < grid.x; ++x)
+            out[std::size_t(x)] = row[x];
+        else
+          for (int32_t x = 0; x < grid.x; ++x)
+            out[std::size_t(x)] = reinterpret_cast<const uint16_t *>(row)[x];
+        sink(y, z, out.data());
+      }
+      ++z;
+    }
+  };
+  if (stream.size() > std::size_t(std::numeric_limits<int>::max()))
+    throw fail("too long");
+  de265_error e = de265_push_data(decoder.get(), stream.data(), int(stream.size()), 0, nullptr);
+  if (de265_isOK(e))
+    e = de265_flush_data(decoder.get());
+  if (!de265_isOK(e))
+    throw fail(de265_get_error_text(e));
+  for (int more = 1; more;)
+  {
+    e = de265_decode(decoder.get(), &more);
+    if (e == DE265_ERROR_WAITING_FOR_INPUT_DATA)
+      break;
+    if (!de265_isOK(e))
+      throw fail(de265_get_error_text(e));
+    take();
+  }
+  take();
+  // A warning is a stream the encoder did not write: refused as damaged.
+  const de265_error warning = de265_get_warning(decoder.get());
+  if (warning != DE265_OK)
+    throw fail(de265_get_error_text(warning));
+  if (z != grid.z)
+    throw fail(std::to_string(z) + " pictures for " + std::to_string(grid.z) + " slices");
+}
+
+VideoChoice
+ChooseVideoLayer(const float * voxels, PixelType type, const GridSize & grid, double origin, double step,
+                 std::size_t maximumBytes, const std::function<void(double)> & tried)
+{
+  VideoChoice best;
+  best.step = step;
+  best.squaredError = std::numeric_limits<double>::infinity();
+  if (!(step > 0.0))
+    return best;
+  const uint64_t        n = grid.NumberOfVoxels();
+  std::vector<uint16_t> samples(n);
+  double                largest = 0.0;
+  for (uint64_t i = 0; i < n; ++i)
+  {
+    const double s = std::max(0.0, std::round((double(voxels[i]) - origin) / step));
+    largest = std::max(largest, s);
+  }
+  const int32_t depth = VideoDepth(largest);
+  if (depth == 0)
+    return best;
+  const double top = double((1 << depth) - 1);
+  ParallelFor(std::size_t(grid.z), 1, [&](std::size_t z) {
+    const uint64_t plane = uint64_t(grid.x) * uint64_t(grid.y);
+    for (uint64_t i = z * plane, end = i + plane; i < end; ++i)
+      samples[i] = uint16_t(std::clamp(std::round((double(voxels[i]) - origin) / step), 0.0, top));
+  });
+  // The squared error of the volume a stream decodes to, slice by slice in slice order (the same sum
+  // whatever the threads).
+  auto measure = [&](const std::vector<uint8_t> & stream) {
+    const ResidualSamples decoded = DecodeVideoLayer(stream, grid, "video layer");
+    std::vector<double>   partial(std::size_t(grid.z), 0.0);
+    VisitPixelType(type, [&](auto pixel) {
+      using T = decltype(pixel);
+      const T        base = ConvertValue<T>(origin);
+      const uint64_t plane = uint64_t(grid.x) * uint64_t(grid.y);
+      ParallelFor(std::size_t(grid.z), 1, [&](std::size_t z) {
+        double s = 0.0;
+        for (uint64_t i = z * plane, end = i + plane; i < end; ++i)
+        {
+          const double e = double(voxels[i]) - double(AddResidual(base, step, decoded[i]));
+          s += e * e;
+        }
+        partial[z] = s;
+      });
+    });
+    double sum = 0.0;
+    for (double s : partial)
+      sum += s;
+    return sum;
+  };
+  // First the factor that fills the budget at the search preset, from sizes alone (no stream decoded);
+  // then the kept preset from there (its stream is 5% smaller or 15% larger at the same factor), each
+  // fitting stream decoded, until one fills 97% of the budget (the promise of dcv::MinimumFileBytes).
+  const double     target = double(maximumBytes) * 0.985;
+  RateFactorSearch search(target);
+  double           crf = 30.0;
+  bool             lossless = false;
+  for (int encode = 0; encode < 5; ++encode)
+  {
+    const std::size_t bytes = Encode(samples, grid, depth, crf, SearchPreset).size();
+    ++best.encodes;
+    const bool fits = bytes <= maximumBytes;
+    if ((fits && double(bytes) >= 0.95 * target) || (!fits && crf >= 51.0))
+      break;
+    if (fits && crf <= 0.0)
+    {
+      lossless = true; // the finest factor leaves room: the stream that decodes exactly, if it fits
+      break;
+    }
+    const double next = search.Next(crf, bytes, fits);
+    if (next < 0.0)
+      break;
+    crf = next;
+  }
+  RateFactorSearch kept(target, search.Slope());
+  for (int encode = 0; encode < 4; ++encode)
+  {
+    std::vector<uint8_t> stream = EncodeVideoLayer(samples, grid, depth, lossless ? VideoLossless : crf);
+    ++best.encodes;
+    const std::size_t bytes = stream.size();
+    const bool        fits = bytes <= maximumBytes;
+    if (fits)
+    {
+      const double error = measure(stream);
+      if (error < best.squaredError)
+      {
+        best.squaredError = error;
+        best.stream = std::move(stream);
+        best.crf = lossless ? VideoLossless : crf;
+      }
+      if (tried)
+        tried(best.squaredError);
+    }
+    if (lossless)
+    {
+      if (fits)
+        break;
+      lossless = false; // crf stays 0
+      continue;
+    }
+    if ((fits && double(bytes) >= 0.97 * double(maximumBytes)) || (!fits && crf >= 51.0))
+      break;
+    const double next = kept.Next(crf, bytes, fits);
+    if (next < 0.0)
+      break;
+    crf = next;
+  }
+  return best;
+}
+
+std::string
+VideoLibraryVersions()
+{
+  const x265_api * api = x265_api_get(0);
+  std::string      x265 = api ? api->version_str : "?";
+  return "x265 " + x265 + ", libde265 " + de265_get_version();
+}
+
+} // namespace dcv
