@@ -41,7 +41,8 @@ namespace dcv
 struct EncoderOptions
 {
   /** Size of the whole .dcv file in bits per voxel (0: off). The point count, and the quantization step
-   * when QuantizationStep is 0, are chosen so that the file fills 97% to 100% of it (dcv::MinimumFileBytes). */
+   * when QuantizationStep is 0, are chosen so that the file fills 97% to 100% of it (dcv::MinimumFileBytes);
+   * a video layer's stream grows in steps, and on small volumes may fill a little less. */
   double bitsPerVoxel{ 0.0 };
   /** Quality target in dB (0: off): the smallest file whose decoded PSNR reaches it. */
   double psnr{ 0.0 };

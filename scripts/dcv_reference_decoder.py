@@ -669,8 +669,8 @@ def decode_video_layer(h):
         with open(stream, "wb") as out:
             out.write(h["residual_layer"])
         run = subprocess.run([tool, "-q", "-d", "-o", yuv, stream], capture_output=True, text=True)
-        fields = dict(re.findall(r"^\s*(pic_width_in_luma_samples|pic_height_in_luma_samples|bit_depth_luma|"
-                                 r"chroma_format_idc)\s*:\s*(\d+)", run.stdout, re.M))
+        fields = dict(re.findall(r"\b(pic_width_in_luma_samples|pic_height_in_luma_samples|bit_depth_luma|"
+                                 r"chroma_format_idc)\s*:\s*(\d+)", run.stdout + run.stderr))
         if run.returncode != 0 or len(fields) < 4 or not os.path.exists(yuv):
             raise DamagedFile("damaged video layer (dec265 failed)")
         width, height = int(fields["pic_width_in_luma_samples"]), int(fields["pic_height_in_luma_samples"])

@@ -21,6 +21,7 @@
 #include "dcvCodec.h"
 #include "dcvEncoder.h"
 #include "dcvResidualLayer.h"
+#include "dcvVideoLayer.h"
 #include "dcvFileFormat.h"
 #include "dcvInterSliceWavelet.h"
 #include "dcvPhantom.h"
@@ -300,12 +301,14 @@ protected:
     {
       std::vector<uint8_t> compact;
       const int            form = (h.constantSpline ? 1 : 0) | (h.residualStep == 1.0 ? 2 : 0) |
-                       (CompactLayer(h.residualLayer, h.size, compact) ? 4 : 0);
+                       (!h.videoLayer && CompactLayer(h.residualLayer, h.size, compact) ? 4 : 0) |
+                       (h.videoLayer ? 8 : 0);
       EXPECT_EQ(field("form"), Tokens{ std::to_string(form) });
       EXPECT_EQ(numbers(field("residual_step")), std::vector<double>{ h.residualStep });
       EXPECT_EQ(field("residual_levels"), Tokens{ std::to_string(h.residualLevels) });
       EXPECT_EQ(field("residual_bytes"), Tokens{ std::to_string(h.residualLayer.size()) });
-      const auto           samples = DecodeResidualLayer(h.residualLayer, h.size, path, h.residualLevels);
+      const auto           samples = h.videoLayer ? DecodeVideoLayer(h.residualLayer, h.size, path)
+                                                  : DecodeResidualLayer(h.residualLayer, h.size, path, h.residualLevels);
       std::vector<uint8_t> le;
       for (int32_t v : samples)
         for (int b = 0; b < 4; ++b)
@@ -502,6 +505,7 @@ TEST_F(FormatSpecification, ResidualLayer)
   {
     EncoderOptions options;
     options.bitsPerVoxel = bpv;
+    options.videoLayer = false; // the JPEG 2000 layers (the video layer: the next test)
     for (int i = 0; i < 12; ++i) // as DICOM attributes are: deflated (flag bit 4)
       options.metadata.emplace_back("DICOM Attribute" + std::to_string(i), "1.3.46.670589.33.1." + std::to_string(i));
     const EncoderResult r = Encode(input, options);
@@ -530,6 +534,57 @@ TEST_F(FormatSpecification, ResidualLayer)
       }
     }
   }
+}
+
+// The video layer: the reference decoder (libde265's dec265) gives the library's samples, at 8, 10 and 12
+// bits, on slices that are not whole coding tree units, and in the file the encoder chose.
+TEST_F(FormatSpecification, VideoLayer)
+{
+  const GridSize grid{ 40, 36, 6 };
+  for (int32_t depth : { 8, 10, 12 })
+  {
+    std::vector<uint16_t> samples(grid.NumberOfVoxels());
+    for (int32_t z = 0; z < grid.z; ++z)
+      for (int32_t y = 0; y < grid.y; ++y)
+        for (int32_t x = 0; x < grid.x; ++x)
+          samples[grid.Offset(x, y, z)] =
+            uint16_t(std::lround(((1 << depth) - 1) * (0.5 + 0.45 * std::sin(0.15 * x + 1.7 * z) * std::cos(0.1 * y))));
+    FileHeader h;
+    h.pixelType = PixelType::Int16;
+    h.size = grid;
+    h.constantSpline = true;
+    h.videoLayer = true;
+    h.quantizationOrigin = -1024.0;
+    h.residualStep = depth == 12 ? 1.0 : 3.0;
+    h.numberOfPoints = 8;
+    h.residualLayer = EncodeVideoLayer(samples, grid, depth, 20.0);
+    const std::string path = Path("video.dcv");
+    WriteFileAtomically(path, SerializeFile(h, {}));
+    ExpectAgreement(path);
+  }
+  // A head in air on thick slices (as test/dcvVideoLayerTest.cxx): the encoder keeps the video layer.
+  const GridSize     head{ 96, 96, 12 };
+  std::vector<float> voxels(head.NumberOfVoxels());
+  for (int32_t z = 0; z < head.z; ++z)
+    for (int32_t y = 0; y < head.y; ++y)
+      for (int32_t x = 0; x < head.x; ++x)
+      {
+        const bool inside = std::hypot(x - 48.0, y - 48.0) < 38.4;
+        voxels[head.Offset(x, y, z)] =
+          float(std::lround(-1000.0 + (inside ? 1040.0 + 60.0 * std::sin(0.3 * x + 0.2 * z) * std::cos(0.25 * y) : 0.0)));
+      }
+  EncoderInput input;
+  input.voxels = voxels.data();
+  input.header.pixelType = PixelType::Int16;
+  input.header.size = head;
+  input.header.spacing = { 0.5, 0.5, 5.0 };
+  EncoderOptions options;
+  options.bitsPerVoxel = 0.125;
+  const EncoderResult r = Encode(input, options);
+  ASSERT_TRUE(r.header.videoLayer);
+  const std::string path = Path("encoded-video.dcv");
+  WriteFileAtomically(path, r.bytes);
+  ExpectAgreement(path);
 }
 
 TEST_F(FormatSpecification, DamagedFilesAreRefused)

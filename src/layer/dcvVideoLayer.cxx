@@ -92,20 +92,29 @@ private:
  * same stream on norm-256; the worker threads never change it). */
 constexpr int FrameThreads = 2;
 
-/** The largest coding tree unit the slices hold (x265 refuses pictures smaller than one). */
+/** The pictures' sides: the slice's rounded up to `unit` samples. */
 int32_t
-CodingTreeUnit(const GridSize & grid)
+Padded(int32_t side, int32_t unit)
 {
-  const int32_t side = std::min(grid.x, grid.y);
-  return side >= 64 ? 64 : side >= 32 ? 32 : 16;
+  return (side + unit - 1) / unit * unit;
 }
 
-/** Picture sides: the slice's, rounded up to whole coding tree units. Debian's x265 3.5 aborts on some
- * 10 and 12-bit picture sizes that are not (48 x 64 at a CTU of 32), never on whole units. */
-int32_t
-Padded(int32_t side, int32_t ctu)
+/** The coding tree unit and the pictures' size for slices of `grid`: sides rounded up to 8 samples (HEVC's
+ * smallest coding unit), at least 64 wide and 16 high, and the largest unit the pictures hold (x265 refuses
+ * pictures smaller than one). Debian's x265 3.5 writes past its lookahead's buffers on pictures narrower
+ * than 56 samples (valgrind: 24 x 24 to 48 x 80, at 8 and 12 bits, whatever the unit), never on the 64-wide
+ * ones tried (64 x 16 to 200 x 40); it aborts on some. Padding costs bytes (ironprot's 68 x 68 slices as
+ * 128 x 128: 38.89 dB at 0.125 bpv, x265 at 72 x 72: 39.45). */
+struct PictureSize
 {
-  return (side + ctu - 1) / ctu * ctu;
+  int32_t ctu, width, height;
+};
+PictureSize
+Pictures(const GridSize & grid)
+{
+  const int32_t width = std::max(Padded(grid.x, 8), 64), height = std::max(Padded(grid.y, 8), 16);
+  const int32_t side = std::min(width, height);
+  return { side >= 64 ? 64 : side >= 32 ? 32 : 16, width, height };
 }
 
 struct ParamDeleter
@@ -215,8 +224,8 @@ Encode(const std::vector<uint16_t> & samples, const GridSize & grid, int32_t dep
   std::unique_ptr<x265_param, ParamDeleter> param(api->param_alloc(), ParamDeleter{ api });
   if (!param || api->param_default_preset(param.get(), preset, "psnr") < 0)
     throw std::runtime_error("libx265 refused its preset");
-  const int32_t     ctu = CodingTreeUnit(grid);
-  const int32_t     width = Padded(grid.x, ctu), height = Padded(grid.y, ctu);
+  const PictureSize pictures = Pictures(grid);
+  const int32_t     ctu = pictures.ctu, width = pictures.width, height = pictures.height;
   const std::string pools = std::to_string(std::max(1u, CurrentThreads()));
   x265_param &      p = *param;
   p.logLevel = X265_LOG_NONE;
@@ -439,7 +448,7 @@ ChooseVideoLayer(const float * voxels, PixelType type, const GridSize & grid, do
     crf = next;
   }
   RateFactorSearch kept(target, search.Slope());
-  for (int encode = 0; encode < 4; ++encode)
+  for (int encode = 0; encode < 5; ++encode)
   {
     std::vector<uint8_t> stream = EncodeVideoLayer(samples, grid, depth, lossless ? VideoLossless : crf);
     ++best.encodes;

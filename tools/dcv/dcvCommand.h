@@ -150,9 +150,15 @@ std::string
 FormatPSNR(double psnr);
 
 /** The residual layer as compress and info print it: the bytes it takes in the file, and those of the whole
- * JPEG 2000 codestream a decoder rebuilds from them (its markers restored); "none" without a layer. */
+ * JPEG 2000 codestream a decoder rebuilds from them (its markers restored), or of the HEVC stream of a video
+ * layer; "none" without a layer. */
 std::string
 FormatResidualLayer(const FileHeader & header);
+
+/** How a file's bytes split: "points P (p%), layer L (l%), header and metadata H (h%)"; the points are the
+ * payload, the layer is its stored bytes (JPEG 2000 or HEVC). */
+std::string
+FormatByteSplit(const FileHeader & header, std::size_t payloadBytes, std::size_t fileBytes);
 
 /** The default --points (10000) for a volume of `voxels`: at most the voxels, so that a small volume
  * needs no option; a count given on the command line is kept, and refused if too large. */

@@ -66,8 +66,14 @@ Compress(const CompressOptions & c)
               << "bytes: " << r.bytes.size() << "\n"
               << "bpv: " << double(r.bytes.size()) * 8.0 / voxels << "\n"
               << "points: " << r.header.numberOfPoints << "\n"
-              << "residual layer: " << FormatResidualLayer(r.header) << "\n"
-              << "step: " << r.header.quantizationStep << "\n"
+              << "residual layer: " << FormatResidualLayer(r.header) << "\n";
+    {
+      FileHeader           parsed;
+      std::vector<uint8_t> payload;
+      ParseFile(r.bytes, Quoted(c.output), parsed, payload);
+      std::cout << "bytes by part: " << FormatByteSplit(parsed, payload.size(), r.bytes.size()) << "\n";
+    }
+    std::cout << "step: " << r.header.quantizationStep << "\n"
               << "scale: " << r.header.scale[0] << " " << r.header.scale[1] << " " << r.header.scale[2] << "\n"
               << "PSNR: " << FormatPSNR(r.psnr) << "\n";
     const std::string dicomHeader = FormatDicomHeaderBytes(r.header, r.bytes.size());

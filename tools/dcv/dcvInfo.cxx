@@ -33,6 +33,7 @@ Info(const std::string & input)
   std::cout << "file: " << input << "\n"
             << "version: " << int(FileHeader::Version) << "\n"
             << "bytes: " << file.size << " (payload " << file.payload.size() << ")\n"
+            << "bytes by part: " << FormatByteSplit(h, file.payload.size(), file.size) << "\n"
             << "bpv: " << double(file.size) * 8.0 / voxels << "\n"
             << "size: " << h.size.x << " " << h.size.y << " " << h.size.z << "\n"
             << "pixel type: " << PixelTypeName(h.pixelType) << "\n"
