@@ -443,10 +443,11 @@ TEST_F(CommandLine, VersionNamesTheModuleAndTheLibrariesItWasBuiltWith)
   EXPECT_EQ(r.output.rfind(std::string("dcv ") + DCV_PROJECT_VERSION + "\n", 0), 0u) << r.output;
   const std::string itk = "ITK " + std::to_string(ITK_VERSION_MAJOR) + "." + std::to_string(ITK_VERSION_MINOR) + "." +
                           std::to_string(ITK_VERSION_PATCH);
-  // The libraries on one line: ITK, CGAL and DCMTK as this test was compiled against them, OpenJPEG (as
-  // loaded at run time) with a version of three numbers.
-  const std::regex libraries("\n" + itk + ", CGAL " + CGAL_VERSION_STR + ", OpenJPEG [0-9]+\\.[0-9]+\\.[0-9]+, DCMTK " +
-                             OFFIS_DCMTK_VERSION_STRING + "\n?$");
+  // The libraries on one line: ITK, CGAL and DCMTK as this test was compiled against them, OpenJPEG, x265
+  // and libde265 (as loaded at run time) with versions of numbers.
+  const std::regex libraries("\n" + itk + ", CGAL " + CGAL_VERSION_STR +
+                             ", OpenJPEG [0-9]+\\.[0-9]+\\.[0-9]+, x265 [0-9]+\\.[0-9][^,]*, libde265 [0-9]+\\.[0-9]+\\.[0-9]+, "
+                             "DCMTK " + OFFIS_DCMTK_VERSION_STRING + "\n?$");
   EXPECT_TRUE(std::regex_search(r.output, libraries)) << r.output;
 }
 

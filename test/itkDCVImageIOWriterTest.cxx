@@ -355,6 +355,7 @@ TEST(Encoder, AbandonsThePointsWhereTheResidualLayerWinsByFar)
     it.Set(slice[std::size_t(it.GetIndex()[1] * 48 + it.GetIndex()[0])]);
   dcv::EncoderOptions options;
   options.bitsPerVoxel = 0.5;
+  options.videoLayer = false; // the JPEG 2000 layer's levels are what this checks
   const auto r = itk::DCVEncode(image.GetPointer(), options);
   EXPECT_EQ(r.header.numberOfPoints, 8u);
   // Each level halves the slices left to code, so the corners' layer's descent over the levels goes on to
@@ -367,10 +368,16 @@ TEST(Encoder, AbandonsThePointsWhereTheResidualLayerWinsByFar)
   const auto low = itk::DCVEncode(image.GetPointer(), options);
   EXPECT_EQ(low.header.numberOfPoints, 8u);
   EXPECT_EQ(low.header.residualLevels, dcv::InterSliceLevels(32));
+  // With the video layer too: the points abandoned as early.
+  options.videoLayer = true;
+  const auto video = itk::DCVEncode(image.GetPointer(), options);
+  EXPECT_EQ(video.header.numberOfPoints, 8u);
+  EXPECT_EQ(video.adjustments, 0u) << "the points' count was fitted";
+  EXPECT_GE(video.psnr, low.psnr);
+  options.videoLayer = false;
   options.bitsPerVoxel = 0.5;
   // The phantom at a low rate: the points beat the JPEG 2000 layers, and are not abandoned (the video
   // layer, which decodes it closer still, left out).
-  options.videoLayer = false;
   const auto phantom = itk::DCVEncode(Phantom({ 56, 48, 40 }).GetPointer(), options);
   EXPECT_GT(phantom.header.numberOfPoints, 8u);
   EXPECT_GT(phantom.timings.decimation, 0.0);

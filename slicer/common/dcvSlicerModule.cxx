@@ -602,6 +602,7 @@ EncoderOptionsFrom(const Arguments & arguments)
     throw tools::Failure(std::string("--mode: ") + e.what());
   }
   o.residualLayer = !arguments.Boolean("noResidualLayer");
+  o.videoLayer = !arguments.Boolean("noVideoLayer");
   o.quantizationStep = arguments.Double("quantizationStep");
   o.domainSigma = arguments.Double("domainSigma");
   o.rangeSigma = arguments.Double("rangeSigma");
