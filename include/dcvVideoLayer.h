@@ -44,8 +44,8 @@ constexpr int32_t VideoMaximumDepth = 12;
 DelaunayCompression_EXPORT int32_t
 VideoDepth(double largest);
 
-/** The step of a video layer's samples: 1 for integer data whose range fits 12 bits, else the range over
- * 2^12 - 1 (rounded up for integers), so that every sample fits 12 bits. */
+/** The step of a video layer's samples: for integer data 1 where the range fits 12 bits, else the range over
+ * 2^12 - 1 rounded up; for real data the range over 2^12 - 1. Every sample fits 12 bits. */
 DelaunayCompression_EXPORT double
 VideoStep(double range, bool integer);
 

@@ -99,6 +99,7 @@ TEST(VideoLayer, DepthAndStep)
   EXPECT_EQ(dcv::VideoStep(4096.0, true), 2.0);
   EXPECT_EQ(dcv::VideoStep(65535.0, true), 17.0);
   EXPECT_DOUBLE_EQ(dcv::VideoStep(8190.0, false), 2.0);
+  EXPECT_DOUBLE_EQ(dcv::VideoStep(1.0, false), 1.0 / 4095.0);
 }
 
 // Every depth, and slices smaller than a coding tree unit, of odd sizes, and the 48 x 64 slices on which
@@ -217,6 +218,21 @@ TEST(VideoLayer, EncoderKeepsItWhereItDecodesClosest)
   EXPECT_EQ(
     dcv::PSNR(dcv::SquaredError(image->GetBufferPointer(), decoded.data(), decoded.size()), decoded.size(), peak),
     video.psnr);
+}
+
+// Real data: 12 bits over the range, however small (the range 0 to 1 in steps of 1/4095, not 1).
+TEST(VideoLayer, RealDataTakeTwelveBitsOverTheirRange)
+{
+  const GridSize              g{ 64, 48, 8 };
+  const std::vector<uint16_t> s = Slices(g, 4095, 5);
+  std::vector<float>          voxels(s.size());
+  for (std::size_t i = 0; i < s.size(); ++i)
+    voxels[i] = float(s[i]) / 4095.0f;
+  const double           step = dcv::VideoStep(1.0, false);
+  const dcv::VideoChoice c = dcv::ChooseVideoLayer(voxels.data(), dcv::PixelType::Float32, g, 0.0, step, 8000);
+  ASSERT_FALSE(c.stream.empty());
+  EXPECT_LE(c.stream.size(), 8000u);
+  EXPECT_GT(dcv::PSNR(c.squaredError, g.NumberOfVoxels(), 1.0), 40.0);
 }
 
 // The container: a video layer only over a constant spline, without the compact form or the inter-slice

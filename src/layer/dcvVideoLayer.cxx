@@ -191,10 +191,9 @@ double
 VideoStep(double range, bool integer)
 {
   const double most = double((1 << VideoMaximumDepth) - 1);
-  if (!(range > most))
-    return 1.0;
-  const double step = range / most;
-  return integer ? std::ceil(step) : step;
+  if (!integer) // the 12 bits over the range, whatever it is
+    return range > 0.0 ? range / most : 1.0;
+  return range > most ? std::ceil(range / most) : 1.0;
 }
 
 namespace
