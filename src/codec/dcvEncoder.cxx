@@ -341,7 +341,16 @@ TryVideo(const EncoderInput & input, CornersCandidate & candidate, std::size_t f
   const std::size_t room = LayerRoom(h, step, fileBytes, 0);
   if (room < MinimumCodestream)
     return;
-  candidate.video = ChooseVideoLayer(input.voxels, type, input.header.size, minimum, step, room, tried);
+  // Slices x265 cannot code (larger than HEVC's pictures may be) leave the other candidates, as a budget
+  // too small for a stream does.
+  try
+  {
+    candidate.video = ChooseVideoLayer(input.voxels, type, input.header.size, minimum, step, room, tried);
+  }
+  catch (const std::runtime_error &)
+  {
+    candidate.video = VideoChoice();
+  }
   if (candidate.video.stream.empty())
     return;
   // Kept when it decodes closer than every other candidate (ChooseLayers); the error the caller reports

@@ -104,7 +104,7 @@ Padded(int32_t side, int32_t unit)
  * pictures smaller than one). Debian's x265 3.5 writes past its lookahead's buffers on pictures narrower
  * than 56 samples (valgrind: 24 x 24 to 48 x 80, at 8 and 12 bits, whatever the unit), never on the 64-wide
  * ones tried (64 x 16 to 200 x 40); it aborts on some. Padding costs bytes (ironprot's 68 x 68 slices as
- * 128 x 128: 38.89 dB at 0.125 bpv, x265 at 72 x 72: 39.45). */
+ * 128 x 128: 38.89 dB at 0.125 bpv, as 72 x 72: 39.03). */
 struct PictureSize
 {
   int32_t ctu, width, height;
