@@ -141,6 +141,17 @@ TEST(VideoLayer, SameStreamWhateverTheNumberOfThreads)
   EXPECT_EQ(streams[0], streams[2]);
 }
 
+// The same stream every time, for slices narrower than the pictures (head-mr's 48 x 62 as 64 x 64), one
+// encode after another in one process.
+TEST(VideoLayer, SameStreamEveryTime)
+{
+  const GridSize              g{ 48, 62, 42 };
+  const std::vector<uint16_t> s = Slices(g, 255, 9);
+  const std::vector<uint8_t>  first = dcv::EncodeVideoLayer(s, g, 8, 30.0);
+  for (int i = 0; i < 4; ++i)
+    EXPECT_EQ(dcv::EncodeVideoLayer(s, g, 8, 30.0), first) << i;
+}
+
 TEST(VideoLayer, DamagedStreamsAreRefusedByName)
 {
   const GridSize              g{ 40, 36, 6 };

@@ -23,6 +23,8 @@
 #include <x265.h>
 
 #include <algorithm>
+#include <malloc.h>
+#include <mutex>
 #include <cmath>
 #include <limits>
 #include <memory>
@@ -210,6 +212,21 @@ EncodeVideoLayer(const std::vector<uint16_t> & samples, const GridSize & grid, i
 
 namespace
 {
+/** Debian's x265 3.5 reads heap memory it never wrote (valgrind: its inter analysis and residual search,
+ * at every preset), so the same samples gave a different stream from one encode to the next within a
+ * process (a fresh process's heap is zeros). glibc's perturbation fills every block malloc hands out with
+ * one byte, which makes that memory the same every time: set once, before the first encode, for the
+ * whole process (a memset of each small block allocated and freed from then on). */
+void
+MakeHeapDeterministic()
+{
+  static std::once_flag once;
+  std::call_once(once, [] { mallopt(M_PERTURB, 0x5a); });
+}
+} // namespace
+
+namespace
+{
 std::vector<uint8_t>
 Encode(const std::vector<uint16_t> & samples, const GridSize & grid, int32_t depth, double crf, const char * preset)
 {
@@ -217,6 +234,7 @@ Encode(const std::vector<uint16_t> & samples, const GridSize & grid, int32_t dep
     throw std::invalid_argument("EncodeVideoLayer: the depth must be 8, 10 or 12");
   if (samples.size() != grid.NumberOfVoxels())
     throw std::invalid_argument("EncodeVideoLayer: one sample a voxel");
+  MakeHeapDeterministic();
   const x265_api * api = x265_api_get(depth);
   if (api == nullptr)
     throw std::runtime_error("libx265 has no " + std::to_string(depth) + "-bit encoder");
