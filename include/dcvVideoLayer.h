@@ -91,7 +91,7 @@ ChooseVideoLayer(const float * voxels, PixelType type, const GridSize & grid, do
 
 /** The libraries' versions, for `dcv --version`: "x265 3.5, libde265 1.0.11". */
 DelaunayCompression_EXPORT std::string
-VideoLibraryVersions();
+                           VideoLibraryVersions();
 
 } // namespace dcv
 

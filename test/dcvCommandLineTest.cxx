@@ -445,9 +445,11 @@ TEST_F(CommandLine, VersionNamesTheModuleAndTheLibrariesItWasBuiltWith)
                           std::to_string(ITK_VERSION_PATCH);
   // The libraries on one line: ITK, CGAL and DCMTK as this test was compiled against them, OpenJPEG, x265
   // and libde265 (as loaded at run time) with versions of numbers.
-  const std::regex libraries("\n" + itk + ", CGAL " + CGAL_VERSION_STR +
-                             ", OpenJPEG [0-9]+\\.[0-9]+\\.[0-9]+, x265 [0-9]+\\.[0-9][^,]*, libde265 [0-9]+\\.[0-9]+\\.[0-9]+, "
-                             "DCMTK " + OFFIS_DCMTK_VERSION_STRING + "\n?$");
+  const std::regex libraries(
+    "\n" + itk + ", CGAL " + CGAL_VERSION_STR +
+    ", OpenJPEG [0-9]+\\.[0-9]+\\.[0-9]+, x265 [0-9]+\\.[0-9][^,]*, libde265 [0-9]+\\.[0-9]+\\.[0-9]+, "
+    "DCMTK " +
+    OFFIS_DCMTK_VERSION_STRING + "\n?$");
   EXPECT_TRUE(std::regex_search(r.output, libraries)) << r.output;
 }
 

@@ -505,7 +505,7 @@ TEST_F(FormatSpecification, ResidualLayer)
   {
     EncoderOptions options;
     options.bitsPerVoxel = bpv;
-    options.videoLayer = false; // the JPEG 2000 layers (the video layer: the next test)
+    options.videoLayer = false;  // the JPEG 2000 layers (the video layer: the next test)
     for (int i = 0; i < 12; ++i) // as DICOM attributes are: deflated (flag bit 4)
       options.metadata.emplace_back("DICOM Attribute" + std::to_string(i), "1.3.46.670589.33.1." + std::to_string(i));
     const EncoderResult r = Encode(input, options);
@@ -570,8 +570,8 @@ TEST_F(FormatSpecification, VideoLayer)
       for (int32_t x = 0; x < head.x; ++x)
       {
         const bool inside = std::hypot(x - 48.0, y - 48.0) < 38.4;
-        voxels[head.Offset(x, y, z)] =
-          float(std::lround(-1000.0 + (inside ? 1040.0 + 60.0 * std::sin(0.3 * x + 0.2 * z) * std::cos(0.25 * y) : 0.0)));
+        voxels[head.Offset(x, y, z)] = float(
+          std::lround(-1000.0 + (inside ? 1040.0 + 60.0 * std::sin(0.3 * x + 0.2 * z) * std::cos(0.25 * y) : 0.0)));
       }
   EncoderInput input;
   input.voxels = voxels.data();

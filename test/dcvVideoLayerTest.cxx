@@ -46,8 +46,8 @@ Slices(const GridSize & g, int top, unsigned seed)
     for (int32_t y = 0; y < g.y; ++y)
       for (int32_t x = 0; x < g.x; ++x)
       {
-        const double v = 0.5 * top * (1.0 + 0.8 * std::sin(0.2 * x + 0.3 * z) * std::cos(0.15 * y)) +
-                         double(random() % 5) - 2.0;
+        const double v =
+          0.5 * top * (1.0 + 0.8 * std::sin(0.2 * x + 0.3 * z) * std::cos(0.15 * y)) + double(random() % 5) - 2.0;
         s[g.Offset(x, y, z)] = uint16_t(std::clamp(v, 0.0, double(top)));
       }
   return s;
@@ -173,8 +173,8 @@ TEST(VideoLayer, DamagedStreamsAreRefusedByName)
   EXPECT_NE(refused(stream, GridSize{ 40, 36, 7 }).find("6 pictures for 7 slices"), std::string::npos);
   EXPECT_NE(refused(stream, GridSize{ 40, 36, 5 }).find("more pictures than"), std::string::npos);
   EXPECT_NE(refused(stream, GridSize{ 80, 36, 6 }).find("smaller than the slices"), std::string::npos);
-  EXPECT_FALSE(refused(std::vector<uint8_t>(stream.begin(), stream.begin() + std::ptrdiff_t(stream.size() / 2)), g)
-                 .empty());
+  EXPECT_FALSE(
+    refused(std::vector<uint8_t>(stream.begin(), stream.begin() + std::ptrdiff_t(stream.size() / 2)), g).empty());
   EXPECT_FALSE(refused({ 0, 0, 0, 1 }, g).empty());
   // Bytes changed anywhere: refused, or pictures of the grid; never a crash.
   std::mt19937 random(7);
@@ -196,9 +196,9 @@ TEST(VideoLayer, DamagedStreamsAreRefusedByName)
 // the threads; without the video layer the file holds none and decodes no closer.
 TEST(VideoLayer, EncoderKeepsItWhereItDecodesClosest)
 {
-  const GridSize g{ 96, 96, 12 };
-  const auto     image = ThickSlices(g);
-  const double   bpv = 0.125;
+  const GridSize      g{ 96, 96, 12 };
+  const auto          image = ThickSlices(g);
+  const double        bpv = 0.125;
   dcv::EncoderOptions options;
   options.bitsPerVoxel = bpv;
   options.threads = 2;
@@ -250,8 +250,8 @@ TEST(VideoLayer, RealDataTakeTwelveBitsOverTheirRange)
 // wavelet; read back as written.
 TEST(VideoLayer, ContainerCarriesIt)
 {
-  const GridSize              g{ 40, 36, 6 };
-  dcv::FileHeader             h;
+  const GridSize  g{ 40, 36, 6 };
+  dcv::FileHeader h;
   h.size = g;
   h.constantSpline = true;
   h.videoLayer = true;

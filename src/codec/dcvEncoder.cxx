@@ -314,7 +314,7 @@ struct CornersCandidate
   FileHeader                      header; // a constant spline (form bit 0): no points, no payload
   Approximation                   spline;
   double                          step{ 0.0 };
-  std::unique_ptr<ResidualSearch> search; // none: no room for a codestream, or a constant volume
+  std::unique_ptr<ResidualSearch> search;      // none: no room for a codestream, or a constant volume
   FileHeader                      videoHeader; // the corners under a video layer (form bits 0 and 3)
   VideoChoice                     video;       // no stream: none fits
 
@@ -628,11 +628,14 @@ Run(const EncoderInput & input, const EncoderOptions & o, bool coded, std::vecto
     cornersLater = std::async(std::launch::async, [&, header = r.header, threads = CurrentThreads()] {
       return WithThreads(threads, [&] {
         const auto       start = std::chrono::steady_clock::now();
-        CornersCandidate c = TryCorners(
-          input, header, std::size_t(fileBytes), range.first, range.second, parameters.peak, o.videoLayer,
-          [&](double error) {
-            cornersBound.store(error);
-          });
+        CornersCandidate c = TryCorners(input,
+                                        header,
+                                        std::size_t(fileBytes),
+                                        range.first,
+                                        range.second,
+                                        parameters.peak,
+                                        o.videoLayer,
+                                        [&](double error) { cornersBound.store(error); });
         r.timings.residualLayer += std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
         return c;
       });

@@ -32,8 +32,8 @@ LibraryVersions()
 {
   // ITK_VERSION_STRING is major.minor only: the patch level is in its own macro.
   return "ITK " + std::to_string(ITK_VERSION_MAJOR) + "." + std::to_string(ITK_VERSION_MINOR) + "." +
-         std::to_string(ITK_VERSION_PATCH) + ", CGAL " + CGAL_VERSION_STR + ", OpenJPEG " + opj_version() +
-         ", " + VideoLibraryVersions();
+         std::to_string(ITK_VERSION_PATCH) + ", CGAL " + CGAL_VERSION_STR + ", OpenJPEG " + opj_version() + ", " +
+         VideoLibraryVersions();
 }
 
 } // namespace dcv

@@ -340,8 +340,8 @@ DecodeVideoRows(const std::vector<uint8_t> & stream, const GridSize & grid, cons
   de265_set_parameter_int(decoder.get(), DE265_DECODER_PARAM_ACCELERATION_CODE, de265_acceleration_SCALAR);
   std::vector<int32_t> out(std::size_t(grid.x));
   int32_t              z = 0;
-  auto            fail = [&](const std::string & what) { return FormatError(name + ": invalid video layer (" + what + ")"); };
-  auto            take = [&]() {
+  auto fail = [&](const std::string & what) { return FormatError(name + ": invalid video layer (" + what + ")"); };
+  auto take = [&]() {
     while (const de265_image * image = de265_get_next_picture(decoder.get()))
     {
       if (z >= grid.z)

@@ -299,11 +299,11 @@ FormatResidualLayer(const FileHeader & header)
 std::string
 FormatByteSplit(const FileHeader & header, std::size_t payloadBytes, std::size_t fileBytes)
 {
-  const std::size_t layer = header.residualLayer.empty() ? 0
-                            : header.videoLayer          ? header.residualLayer.size()
-                                                         : StoredLayerBytes(header.residualLayer, header.size);
-  const std::size_t other = fileBytes - std::min(fileBytes, payloadBytes + layer);
-  const double      whole = double(std::max<std::size_t>(1, fileBytes));
+  const std::size_t  layer = header.residualLayer.empty() ? 0
+                             : header.videoLayer          ? header.residualLayer.size()
+                                                          : StoredLayerBytes(header.residualLayer, header.size);
+  const std::size_t  other = fileBytes - std::min(fileBytes, payloadBytes + layer);
+  const double       whole = double(std::max<std::size_t>(1, fileBytes));
   std::ostringstream text;
   text.precision(3);
   text << "points " << payloadBytes << " (" << 100.0 * double(payloadBytes) / whole << "%), layer " << layer << " ("
