@@ -16,8 +16,12 @@ pkg_check_modules(OpenJPEG REQUIRED IMPORTED_TARGET libopenjp2>=2.5)
 # The video layer's HEVC: x265 encodes (libx265-dev, GPL-2+), libde265 decodes (libde265-dev, LGPL-3+).
 pkg_check_modules(X265 REQUIRED IMPORTED_TARGET x265>=3.5)
 pkg_check_modules(LIBDE265 REQUIRED IMPORTED_TARGET libde265>=1.0.11)
+# ... and its AV1: libaom encodes (libaom-dev, BSD-2-Clause), dav1d decodes (libdav1d-dev, BSD-2-Clause).
+pkg_check_modules(AOM REQUIRED IMPORTED_TARGET aom>=3.6)
+pkg_check_modules(DAV1D REQUIRED IMPORTED_TARGET dav1d>=1.0)
 target_link_libraries(DelaunayCompression ${_dcv_private} CGAL::CGAL Eigen3::Eigen ZLIB::ZLIB Threads::Threads
-  TBB::tbb TBB::tbbmalloc PkgConfig::OpenJPEG PkgConfig::X265 PkgConfig::LIBDE265)
+  TBB::tbb TBB::tbbmalloc PkgConfig::OpenJPEG PkgConfig::X265 PkgConfig::LIBDE265
+  PkgConfig::AOM PkgConfig::DAV1D)
 # CGAL's concurrent triangulation (the decoder's, dcvTetrahedralize.cxx) is compiled with TBB; defined for
 # every source, so that CGAL's classes are the same in each.
 target_compile_definitions(DelaunayCompression PRIVATE CGAL_LINKED_WITH_TBB)

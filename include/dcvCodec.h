@@ -102,7 +102,7 @@ DecodeVolume(const CompressedFile & file, T * out, const DecodeLimits & limits =
       detail::AddResidualToRow(h.residualStep, row, voxels, uint64_t(h.size.x));
     };
     if (h.videoLayer)
-      DecodeVideoRows(h.residualLayer, h.size, file.name, add);
+      DecodeVideoRows(h.videoCodec, h.residualLayer, h.size, file.name, add);
     else
       DecodeResidualRows(h.residualLayer, h.size, file.name, h.residualLevels, add);
   }

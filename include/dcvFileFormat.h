@@ -115,6 +115,13 @@ IsInteger(PixelType type)
   return type != PixelType::Float32 && type != PixelType::Float64;
 }
 
+/** The codec of a video layer (dcvVideoLayer.h): HEVC, or AV1 (form bit 4). */
+enum class VideoCodec : uint8_t
+{
+  HEVC,
+  AV1
+};
+
 /** Everything of a .dcv file but its coded payload. */
 struct FileHeader
 {
@@ -141,9 +148,10 @@ struct FileHeader
   /** The spline is the constant quantizationOrigin (the 8 corners, all at that value) under a residual
    * layer: no point is coded (form bit 0); the payload is empty, numberOfPoints 8. */
   bool constantSpline{ false };
-  /** The residual layer is an HEVC stream (form bit 3, dcvVideoLayer.h), not JPEG 2000: only over a constant
-   * spline, without the inter-slice wavelet. */
-  bool videoLayer{ false };
+  /** The residual layer is a video stream (form bit 3, dcvVideoLayer.h), not JPEG 2000: only over a constant
+   * spline, without the inter-slice wavelet; HEVC, or with form bit 4 AV1. */
+  bool       videoLayer{ false };
+  VideoCodec videoCodec{ VideoCodec::HEVC };
 };
 
 /** The metadata key whose value holds the headers of the DICOM files a volume came from (docs/format.md,

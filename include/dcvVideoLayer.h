@@ -29,15 +29,20 @@
 
 /** \file dcvVideoLayer.h
  * The video layer of a .dcv file (docs/format.md, "Video layer"): the volume's slices as the frames of a
- * monochrome HEVC stream (ITU-T H.265), coded by libx265 and decoded by libde265, whose output the
- * standard fixes to the bit. Inter prediction between slices is what a per-slice transform lacks on
- * thick-slice CT. Both libraries stay inside the compiled sources.
+ * monochrome video stream, HEVC (ITU-T H.265: libx265 codes, libde265 decodes) or AV1 (AOMedia: libaom
+ * codes, dav1d decodes), whose decoded samples each standard fixes to the bit. Inter prediction between
+ * slices is what a per-slice transform lacks on thick-slice CT. The libraries stay inside the compiled
+ * sources.
  * \ingroup DelaunayCompression
  */
 namespace dcv
 {
 
-/** The most bits a video layer's samples take (x265 codes 8, 10 or 12). */
+/** "HEVC" or "AV1". */
+DelaunayCompression_EXPORT const char *
+VideoCodecName(VideoCodec codec);
+
+/** The most bits a video layer's samples take (both codecs code 8, 10 or 12). */
 constexpr int32_t VideoMaximumDepth = 12;
 
 /** The bit depth (8, 10 or 12) that holds samples 0 to `largest`; 0 when none does. */
@@ -49,47 +54,56 @@ VideoDepth(double largest);
 DelaunayCompression_EXPORT double
 VideoStep(double range, bool integer);
 
-/** The rate factor of a lossless video layer (HEVC's transquant bypass: the samples decode exactly). */
+/** The quality of a lossless video layer (HEVC's transquant bypass, AV1's lossless mode: the samples
+ * decode exactly). */
 constexpr double VideoLossless = -1.0;
 
-/** Codes samples (laid out as the grid, x fastest; 0 to 2^depth - 1) as an HEVC stream: one frame a slice,
- * at x265's constant rate factor `crf` (0 to 51: larger, smaller; VideoLossless: exact). Deterministic: the
- * same stream whatever the number of threads. Throws std::runtime_error when x265 cannot code it. */
+/** The coarsest quality a codec takes: x265's rate factor 0 to 51 (any real), libaom's quantizer level 0 to
+ * 63 (integers). */
+DelaunayCompression_EXPORT double
+VideoCoarsest(VideoCodec codec);
+
+/** Codes samples (laid out as the grid, x fastest; 0 to 2^depth - 1) as a stream of `codec`: one frame a
+ * slice, at `quality` (0 to VideoCoarsest: larger, smaller; VideoLossless: exact). Deterministic: the same
+ * stream whatever the number of threads. Throws std::runtime_error when the codec cannot code it. */
 DelaunayCompression_EXPORT std::vector<uint8_t>
-EncodeVideoLayer(const std::vector<uint16_t> & samples, const GridSize & grid, int32_t depth, double crf);
+EncodeVideoLayer(VideoCodec codec, const std::vector<uint16_t> & samples, const GridSize & grid, int32_t depth,
+                 double quality);
 
 /** Decodes a video layer to samples laid out as the grid. Throws FormatError starting with `name` when the
  * stream is damaged or does not hold the grid's slices. */
 DelaunayCompression_EXPORT ResidualSamples
-DecodeVideoLayer(const std::vector<uint8_t> & stream, const GridSize & grid, const std::string & name);
+DecodeVideoLayer(VideoCodec codec, const std::vector<uint8_t> & stream, const GridSize & grid,
+                 const std::string & name);
 
 /** DecodeVideoLayer slice by slice, without a volume of the samples: each row (slice z's row y, x samples,
  * valid during the call) goes to `sink(y, z, row)`, in the grid's order. Rows of a stream that turns out
  * damaged later may have been given before the FormatError. */
 DelaunayCompression_EXPORT void
-DecodeVideoRows(const std::vector<uint8_t> & stream, const GridSize & grid, const std::string & name,
+DecodeVideoRows(VideoCodec codec, const std::vector<uint8_t> & stream, const GridSize & grid, const std::string & name,
                 const std::function<void(int32_t y, int32_t z, const int32_t * row)> & sink);
 
 /** A video layer over the constant spline `origin`, and the squared error of the volume it decodes to. */
 struct VideoChoice
 {
+  VideoCodec           codec{ VideoCodec::HEVC };
   double               step{ 0.0 };
-  double               crf{ 0.0 };
+  double               quality{ 0.0 };
   std::vector<uint8_t> stream; // empty: none fits
   double               squaredError{ 0.0 };
   int32_t              encodes{ 0 };
 };
 
 /** Codes `voxels` (the original, laid out as the grid) minus `origin`, in multiples of `step`, as a video
- * layer of at most `maximumBytes` bytes: x265's rate factor searched for the largest stream that fits
- * (a few encodes; where the finest factor leaves room, the lossless stream if it fits), each fitting
- * stream decoded as a decoder will; keeps the one that decodes closest.
- * `tried`, where given, gets the best error after each encode. */
+ * layer of `codec` of at most `maximumBytes` bytes: the quality searched for the largest stream that fits
+ * (a few encodes; where the finest leaves room, the lossless stream if it fits), each fitting stream decoded
+ * as a decoder will; keeps the one that decodes closest. `tried`, where given, gets the best error after
+ * each encode. */
 DelaunayCompression_EXPORT VideoChoice
-ChooseVideoLayer(const float * voxels, PixelType type, const GridSize & grid, double origin, double step,
-                 std::size_t maximumBytes, const std::function<void(double)> & tried = {});
+ChooseVideoLayer(VideoCodec codec, const float * voxels, PixelType type, const GridSize & grid, double origin,
+                 double step, std::size_t maximumBytes, const std::function<void(double)> & tried = {});
 
-/** The libraries' versions, for `dcv --version`: "x265 3.5, libde265 1.0.11". */
+/** The libraries' versions, for `dcv --version`: "x265 3.5, libde265 1.0.11, libaom 3.6.0, dav1d 1.0.0". */
 DelaunayCompression_EXPORT std::string
                            VideoLibraryVersions();
 

@@ -73,7 +73,8 @@ FLAG_FORM = 128
 FORM_CONSTANT = 1  # no points: the spline is the constant q0
 FORM_UNIT_STEP = 2  # the residual step is 1, not stored
 FORM_COMPACT = 4  # the residual layer's codestream is stored compact
-FORM_VIDEO = 8  # the residual layer is an HEVC stream (the video layer)
+FORM_VIDEO = 8  # the residual layer is a video stream (the video layer): HEVC, or with FORM_AV1 AV1
+FORM_AV1 = 16
 # Section "Header", direction code: row r is +-1 at column AXIS_PERMUTATIONS[code & 7][r].
 AXIS_PERMUTATIONS = ((0, 1, 2), (0, 2, 1), (1, 0, 2), (1, 2, 0), (2, 0, 1), (2, 1, 0))
 # Section "Inter-slice wavelet": band weights in 1/4096 (low band after l levels, high band of level k).
@@ -226,8 +227,10 @@ def parse_container(data):
     form = 0
     if flags & FLAG_FORM:
         (form,) = f.unpack("B", "header")
-        if form & ~(FORM_CONSTANT | FORM_UNIT_STEP | FORM_COMPACT | FORM_VIDEO):
+        if form & ~(FORM_CONSTANT | FORM_UNIT_STEP | FORM_COMPACT | FORM_VIDEO | FORM_AV1):
             raise DamagedFile("unknown form bits %d" % form)
+        if form & FORM_AV1 and not form & FORM_VIDEO:
+            raise DamagedFile("form bit 4 (AV1) without a video layer (form bit 3)")
         if form & FORM_VIDEO and (not form & FORM_CONSTANT or form & FORM_COMPACT or flags & FLAG_INTER_SLICE):
             raise DamagedFile("a video layer (form bit 3) needs a constant spline (form bit 0), no compact form "
                               "and no inter-slice wavelet")
@@ -698,6 +701,57 @@ def decode_video_layer(h):
     return samples
 
 
+def decode_av1_layer(h):
+    """Section "Video layer" with form bit 4: the samples r in grid order (x fastest), decoded by dav1d (the
+    dav1d package) from the AV1 stream (low-overhead OBUs): picture z's top-left size x by size y samples
+    are slice z."""
+    import os
+    import re
+    import shutil
+    import subprocess
+    import tempfile
+    if shutil.which("dav1d") is None:
+        raise DamagedFile("dav1d (the dav1d package) is needed to decode an AV1 video layer")
+    sx, sy, sz = h["size"]
+    work = tempfile.mkdtemp(prefix="dcv-av1-")
+    try:
+        stream, y4m = os.path.join(work, "layer.obu"), os.path.join(work, "layer.y4m")
+        with open(stream, "wb") as out:
+            out.write(h["residual_layer"])
+        run = subprocess.run(["dav1d", "-q", "--demuxer", "section5", "--threads", "1", "--filmgrain", "0",
+                              "-i", stream, "-o", y4m], capture_output=True)
+        if run.returncode != 0 or not os.path.exists(y4m):
+            raise DamagedFile("damaged video layer (dav1d failed)")
+        with open(y4m, "rb") as f:
+            data = f.read()
+    finally:
+        shutil.rmtree(work, ignore_errors=True)
+    end = data.find(b"\n")
+    header = data[:end].decode("ascii", "replace")
+    m = re.match(r"YUV4MPEG2 W(\d+) H(\d+) .*\bC(mono(?:10|12)?)\b", header)
+    if not m:
+        raise DamagedFile("damaged video layer (not monochrome pictures)")
+    width, height = int(m.group(1)), int(m.group(2))
+    size = 1 if m.group(3) == "mono" else 2
+    if width < sx or height < sy:
+        raise DamagedFile("damaged video layer (pictures smaller than the slices)")
+    frame = len(b"FRAME\n") + width * height * size
+    body = data[end + 1:]
+    if len(body) != frame * sz:
+        raise DamagedFile("damaged video layer (%d bytes of pictures for %d slices)" % (len(body), sz))
+    samples = []
+    for z in range(sz):
+        if body[z * frame:z * frame + 6] != b"FRAME\n":
+            raise DamagedFile("damaged video layer (a picture without its FRAME line)")
+        for y in range(sy):
+            row = z * frame + 6 + y * width * size
+            if size == 1:
+                samples.extend(body[row:row + sx])
+            else:
+                samples.extend(struct.unpack("<%dH" % sx, body[row:row + 2 * sx]))
+    return samples
+
+
 def decode_residual_layer(h):
     """Section "Residual layer": the samples r in grid order (x fastest), decoded by OpenJPEG's
     opj_decompress (libopenjp2-tools) from the codestream, then taken out of the slice mosaic."""
@@ -705,6 +759,8 @@ def decode_residual_layer(h):
     import shutil
     import subprocess
     import tempfile
+    if h["form"] & FORM_AV1:
+        return decode_av1_layer(h)
     if h["form"] & FORM_VIDEO:
         return decode_video_layer(h)
     if shutil.which("opj_decompress") is None:

@@ -38,7 +38,7 @@ flags=(-std=c++17 -O1 -g -fno-omit-frame-pointer -frounding-math -fsanitize=addr
   -Iinclude -Isrc/core -Isrc/mesh -Isrc/layer -I"$out/include" -isystem /usr/include/eigen3 -DNDEBUG -DCGAL_LINKED_WITH_TBB)
 core=(codec/dcvFileFormat codec/dcvCodec codec/dcvArithmeticCoder codec/dcvPositionCoder mesh/dcvApproximation
   mesh/dcvTetrahedralization mesh/dcvTetrahedralize layer/dcvResidualLayer layer/dcvCompactLayer layer/dcvInterSliceWavelet
-  layer/dcvVideoLayer)
+  layer/dcvVideoLayer layer/dcvVideoHEVC layer/dcvVideoAV1)
 # What src/itk/itkDCV*IO.cxx need besides: the encoder (DCVImageIO writes too).
 encoder=(codec/dcvEncoder codec/dcvRateControl mesh/dcvRefinementEngine mesh/dcvDecimation mesh/dcvLeastSquares
   core/dcvPixelSource)
@@ -84,7 +84,7 @@ for s in src/itk/itkDCVImageIO.cxx src/itk/itkDCVMeshIO.cxx src/itk/itkDCVEncode
   itk_objects+=("$o")
 done
 for p in "${compiling[@]}"; do wait "$p"; done
-libs=(-lz -lopenjp2 -lx265 -lde265 -ltbb -ltbbmalloc -lgmp -lmpfr -pthread)
+libs=(-lz -lopenjp2 -lx265 -lde265 -laom -ldav1d -ltbb -ltbbmalloc -lgmp -lmpfr -pthread)
 itk_libs=(-L/usr/lib -lITKIOMeshBase-5.2 -lITKIOImageBase-5.2 -lITKCommon-5.2 -litkvnl_algo-5.2 -litkvnl-5.2
   -litksys-5.2 -Wl,-rpath,/usr/lib)
 link() { # TARGET SOURCE [OPTIONS...]: relinked when the source, a fuzz/ header or an object is newer

@@ -14,6 +14,9 @@ packages=(
   libx265-dev             # HEVC of the video layer (encoding)
   libde265-dev            # HEVC of the video layer (decoding)
   libde265-examples       # dec265: the reference decoder's video layer
+  libaom-dev              # AV1 of the video layer (encoding)
+  libdav1d-dev            # AV1 of the video layer (decoding)
+  dav1d                   # dav1d: the reference decoder's AV1 video layer
   libtbb-dev              # the encoder's threads (oneTBB)
   libcli11-dev            # dcv's arguments, and those of the Slicer modules
   libexpat1-dev           # the Slicer modules read their own module description (XML)

@@ -302,12 +302,12 @@ protected:
       std::vector<uint8_t> compact;
       const int            form = (h.constantSpline ? 1 : 0) | (h.residualStep == 1.0 ? 2 : 0) |
                        (!h.videoLayer && CompactLayer(h.residualLayer, h.size, compact) ? 4 : 0) |
-                       (h.videoLayer ? 8 : 0);
+                       (h.videoLayer ? 8 : 0) | (h.videoLayer && h.videoCodec == VideoCodec::AV1 ? 16 : 0);
       EXPECT_EQ(field("form"), Tokens{ std::to_string(form) });
       EXPECT_EQ(numbers(field("residual_step")), std::vector<double>{ h.residualStep });
       EXPECT_EQ(field("residual_levels"), Tokens{ std::to_string(h.residualLevels) });
       EXPECT_EQ(field("residual_bytes"), Tokens{ std::to_string(h.residualLayer.size()) });
-      const auto           samples = h.videoLayer ? DecodeVideoLayer(h.residualLayer, h.size, path)
+      const auto           samples = h.videoLayer ? DecodeVideoLayer(h.videoCodec, h.residualLayer, h.size, path)
                                                   : DecodeResidualLayer(h.residualLayer, h.size, path, h.residualLevels);
       std::vector<uint8_t> le;
       for (int32_t v : samples)
@@ -541,27 +541,29 @@ TEST_F(FormatSpecification, ResidualLayer)
 TEST_F(FormatSpecification, VideoLayer)
 {
   const GridSize grid{ 40, 36, 6 };
-  for (int32_t depth : { 8, 10, 12 })
-  {
-    std::vector<uint16_t> samples(grid.NumberOfVoxels());
-    for (int32_t z = 0; z < grid.z; ++z)
-      for (int32_t y = 0; y < grid.y; ++y)
-        for (int32_t x = 0; x < grid.x; ++x)
-          samples[grid.Offset(x, y, z)] =
-            uint16_t(std::lround(((1 << depth) - 1) * (0.5 + 0.45 * std::sin(0.15 * x + 1.7 * z) * std::cos(0.1 * y))));
-    FileHeader h;
-    h.pixelType = PixelType::Int16;
-    h.size = grid;
-    h.constantSpline = true;
-    h.videoLayer = true;
-    h.quantizationOrigin = -1024.0;
-    h.residualStep = depth == 12 ? 1.0 : 3.0;
-    h.numberOfPoints = 8;
-    h.residualLayer = EncodeVideoLayer(samples, grid, depth, 20.0);
-    const std::string path = Path("video.dcv");
-    WriteFileAtomically(path, SerializeFile(h, {}));
-    ExpectAgreement(path);
-  }
+  for (const VideoCodec codec : { VideoCodec::HEVC, VideoCodec::AV1 })
+    for (int32_t depth : { 8, 10, 12 })
+    {
+      std::vector<uint16_t> samples(grid.NumberOfVoxels());
+      for (int32_t z = 0; z < grid.z; ++z)
+        for (int32_t y = 0; y < grid.y; ++y)
+          for (int32_t x = 0; x < grid.x; ++x)
+            samples[grid.Offset(x, y, z)] = uint16_t(
+              std::lround(((1 << depth) - 1) * (0.5 + 0.45 * std::sin(0.15 * x + 1.7 * z) * std::cos(0.1 * y))));
+      FileHeader h;
+      h.pixelType = PixelType::Int16;
+      h.size = grid;
+      h.constantSpline = true;
+      h.videoLayer = true;
+      h.videoCodec = codec;
+      h.quantizationOrigin = -1024.0;
+      h.residualStep = depth == 12 ? 1.0 : 3.0;
+      h.numberOfPoints = 8;
+      h.residualLayer = EncodeVideoLayer(codec, samples, grid, depth, 20.0);
+      const std::string path = Path("video.dcv");
+      WriteFileAtomically(path, SerializeFile(h, {}));
+      ExpectAgreement(path);
+    }
   // A head in air on thick slices (as test/dcvVideoLayerTest.cxx): the encoder keeps the video layer.
   const GridSize     head{ 96, 96, 12 };
   std::vector<float> voxels(head.NumberOfVoxels());

@@ -15,8 +15,8 @@
  *  limitations under the License.
  *
  *=========================================================================*/
-// The video layer: HEVC streams of 8, 10 and 12 bits code and decode the slices of any size, the same
-// stream whatever the threads; damaged streams are refused by name; the encoder keeps the layer only
+// The video layer: HEVC and AV1 streams of 8, 10 and 12 bits code and decode the slices of any size, the
+// same stream whatever the threads; damaged streams are refused by name; the encoder keeps the layer only
 // where it decodes closest, the file decodes to exactly what it reported, and the container refuses the
 // form bits it cannot hold.
 #include "dcvCodec.h"
@@ -28,9 +28,11 @@
 
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <cmath>
 #include <iostream>
 #include <random>
+#include <zlib.h>
 
 namespace
 {
@@ -61,6 +63,28 @@ PSNR(const std::vector<uint16_t> & a, const dcv::ResidualSamples & b, double pea
     e += (double(a[i]) - double(b[i])) * (double(a[i]) - double(b[i]));
   return dcv::PSNR(e, a.size(), peak);
 }
+
+/** Each codec's tests run for both. */
+class VideoCodecs : public ::testing::TestWithParam<dcv::VideoCodec>
+{
+protected:
+  /** A quality of the codec's scale given as one of x265's rate factors (libaom's levels run to 63). */
+  double
+  Quality(double crf) const
+  {
+    return GetParam() == dcv::VideoCodec::AV1 ? std::round(crf * 63.0 / 51.0) : crf;
+  }
+  std::vector<uint8_t>
+  Encode(const std::vector<uint16_t> & s, const GridSize & g, int32_t depth, double crf) const
+  {
+    return dcv::EncodeVideoLayer(GetParam(), s, g, depth, crf == dcv::VideoLossless ? crf : Quality(crf));
+  }
+  dcv::ResidualSamples
+  Decode(const std::vector<uint8_t> & stream, const GridSize & g) const
+  {
+    return dcv::DecodeVideoLayer(GetParam(), stream, g, "'v.dcv'");
+  }
+};
 
 /** Thick CT-like slices (int16, 5 mm over 0.5 mm pixels): texture that changes from slice to slice. */
 itk::Image<int16_t, 3>::Pointer
@@ -104,63 +128,62 @@ TEST(VideoLayer, DepthAndStep)
 
 // Every depth, and slices smaller than a coding tree unit, of odd sizes, and the 48 x 64 slices on which
 // Debian's x265 aborts unless the pictures are whole coding tree units.
-TEST(VideoLayer, CodesAndDecodesEveryDepthAndSize)
+TEST_P(VideoCodecs, CodesAndDecodesEveryDepthAndSize)
 {
   for (const GridSize g : { GridSize{ 40, 36, 6 }, GridSize{ 17, 23, 5 }, GridSize{ 48, 64, 4 }, GridSize{ 2, 2, 2 } })
     for (int32_t depth : { 8, 10, 12 })
     {
       const int                   top = (1 << depth) - 1;
       const std::vector<uint16_t> s = Slices(g, top, unsigned(depth));
-      const std::vector<uint8_t>  stream = dcv::EncodeVideoLayer(s, g, depth, 12.0);
+      const std::vector<uint8_t>  stream = Encode(s, g, depth, 12.0);
       ASSERT_FALSE(stream.empty());
-      const dcv::ResidualSamples decoded = dcv::DecodeVideoLayer(stream, g, "'v.dcv'");
+      const dcv::ResidualSamples decoded = Decode(stream, g);
       ASSERT_EQ(decoded.size(), s.size());
       EXPECT_GT(PSNR(s, decoded, top), 38.0) << g.x << "x" << g.y << "x" << g.z << ", " << depth << " bits";
       for (int32_t v : decoded)
         ASSERT_TRUE(v >= 0 && v <= top);
       // A larger rate factor: a smaller stream, decoded farther.
-      const std::vector<uint8_t> small = dcv::EncodeVideoLayer(s, g, depth, 40.0);
+      const std::vector<uint8_t> small = Encode(s, g, depth, 40.0);
       EXPECT_LT(small.size(), stream.size());
-      EXPECT_LT(PSNR(s, dcv::DecodeVideoLayer(small, g, "'v.dcv'"), top), PSNR(s, decoded, top));
+      EXPECT_LT(PSNR(s, Decode(small, g), top), PSNR(s, decoded, top));
       // Lossless: exactly the samples.
-      const dcv::ResidualSamples exact =
-        dcv::DecodeVideoLayer(dcv::EncodeVideoLayer(s, g, depth, dcv::VideoLossless), g, "'v.dcv'");
+      const dcv::ResidualSamples exact = Decode(Encode(s, g, depth, dcv::VideoLossless), g);
       EXPECT_TRUE(std::equal(s.begin(), s.end(), exact.begin()));
     }
 }
 
-TEST(VideoLayer, SameStreamWhateverTheNumberOfThreads)
+TEST_P(VideoCodecs, SameStreamWhateverTheNumberOfThreads)
 {
   const GridSize              g{ 96, 80, 24 };
   const std::vector<uint16_t> s = Slices(g, 1000, 3);
   std::vector<uint8_t>        streams[3];
   unsigned                    threads[3] = { 1, 2, 4 };
   for (int i = 0; i < 3; ++i)
-    streams[i] = dcv::WithThreads(threads[i], [&] { return dcv::EncodeVideoLayer(s, g, 10, 30.0); });
+    streams[i] = dcv::WithThreads(threads[i], [&] { return Encode(s, g, 10, 30.0); });
   EXPECT_EQ(streams[0], streams[1]);
   EXPECT_EQ(streams[0], streams[2]);
 }
 
 // The same stream every time, for slices narrower than the pictures (head-mr's 48 x 62 as 64 x 64), one
 // encode after another in one process.
-TEST(VideoLayer, SameStreamEveryTime)
+TEST_P(VideoCodecs, SameStreamEveryTime)
 {
   const GridSize              g{ 48, 62, 42 };
   const std::vector<uint16_t> s = Slices(g, 255, 9);
-  const std::vector<uint8_t>  first = dcv::EncodeVideoLayer(s, g, 8, 30.0);
+  const std::vector<uint8_t>  first = Encode(s, g, 8, 30.0);
   for (int i = 0; i < 4; ++i)
-    EXPECT_EQ(dcv::EncodeVideoLayer(s, g, 8, 30.0), first) << i;
+    EXPECT_EQ(Encode(s, g, 8, 30.0), first) << i;
 }
 
-TEST(VideoLayer, DamagedStreamsAreRefusedByName)
+TEST_P(VideoCodecs, DamagedStreamsAreRefusedByName)
 {
   const GridSize              g{ 40, 36, 6 };
   const std::vector<uint16_t> s = Slices(g, 255, 1);
-  const std::vector<uint8_t>  stream = dcv::EncodeVideoLayer(s, g, 8, 20.0);
+  const std::vector<uint8_t>  stream = Encode(s, g, 8, 20.0);
   auto                        refused = [&](const std::vector<uint8_t> & bytes, const GridSize & grid) {
     try
     {
-      dcv::DecodeVideoLayer(bytes, grid, "'v.dcv'");
+      Decode(bytes, grid);
       return std::string();
     }
     catch (const dcv::FormatError & e)
@@ -185,7 +208,7 @@ TEST(VideoLayer, DamagedStreamsAreRefusedByName)
       bad[random() % bad.size()] ^= uint8_t(1 + random() % 255);
     try
     {
-      EXPECT_EQ(dcv::DecodeVideoLayer(bad, g, "'v.dcv'").size(), g.NumberOfVoxels());
+      EXPECT_EQ(Decode(bad, g).size(), g.NumberOfVoxels());
     }
     catch (const dcv::FormatError &)
     {}
@@ -232,7 +255,7 @@ TEST(VideoLayer, EncoderKeepsItWhereItDecodesClosest)
 }
 
 // Real data: 12 bits over the range, however small (the range 0 to 1 in steps of 1/4095, not 1).
-TEST(VideoLayer, RealDataTakeTwelveBitsOverTheirRange)
+TEST_P(VideoCodecs, RealDataTakeTwelveBitsOverTheirRange)
 {
   const GridSize              g{ 64, 48, 8 };
   const std::vector<uint16_t> s = Slices(g, 4095, 5);
@@ -240,30 +263,34 @@ TEST(VideoLayer, RealDataTakeTwelveBitsOverTheirRange)
   for (std::size_t i = 0; i < s.size(); ++i)
     voxels[i] = float(s[i]) / 4095.0f;
   const double           step = dcv::VideoStep(1.0, false);
-  const dcv::VideoChoice c = dcv::ChooseVideoLayer(voxels.data(), dcv::PixelType::Float32, g, 0.0, step, 8000);
+  const dcv::VideoChoice c =
+    dcv::ChooseVideoLayer(GetParam(), voxels.data(), dcv::PixelType::Float32, g, 0.0, step, 8000);
   ASSERT_FALSE(c.stream.empty());
   EXPECT_LE(c.stream.size(), 8000u);
+  EXPECT_EQ(c.codec, GetParam());
   EXPECT_GT(dcv::PSNR(c.squaredError, g.NumberOfVoxels(), 1.0), 40.0);
 }
 
-// The container: a video layer only over a constant spline, without the compact form or the inter-slice
-// wavelet; read back as written.
-TEST(VideoLayer, ContainerCarriesIt)
+// The container: a video layer of either codec only over a constant spline, without the compact form or
+// the inter-slice wavelet; read back as written.
+TEST_P(VideoCodecs, ContainerCarriesIt)
 {
   const GridSize  g{ 40, 36, 6 };
   dcv::FileHeader h;
   h.size = g;
   h.constantSpline = true;
   h.videoLayer = true;
+  h.videoCodec = GetParam();
   h.quantizationOrigin = -1024.0;
   h.residualStep = 1.0;
   h.numberOfPoints = 8;
-  h.residualLayer = dcv::EncodeVideoLayer(Slices(g, 4095, 2), g, 12, 25.0);
+  h.residualLayer = Encode(Slices(g, 4095, 2), g, 12, 25.0);
   const std::vector<uint8_t> bytes = dcv::SerializeFile(h, {});
   dcv::FileHeader            back;
   std::vector<uint8_t>       payload;
   dcv::ParseFile(bytes, "'v.dcv'", back, payload);
   EXPECT_TRUE(back.videoLayer);
+  EXPECT_EQ(back.videoCodec, GetParam());
   EXPECT_EQ(back.residualLayer, h.residualLayer);
   EXPECT_EQ(back.quantizationOrigin, -1024.0);
   dcv::FileHeader points = h;
@@ -272,4 +299,48 @@ TEST(VideoLayer, ContainerCarriesIt)
   dcv::FileHeader wavelet = h;
   wavelet.residualLevels = 1;
   EXPECT_THROW(dcv::SerializeFile(wavelet, {}), std::invalid_argument);
+}
+
+INSTANTIATE_TEST_SUITE_P(VideoLayer, VideoCodecs, ::testing::Values(dcv::VideoCodec::HEVC, dcv::VideoCodec::AV1),
+                         [](const auto & info) { return std::string(dcv::VideoCodecName(info.param)); });
+
+// Form bit 4 (AV1) without form bit 3 (a video layer) is refused.
+TEST(VideoLayer, AV1FormBitNeedsAVideoLayer)
+{
+  const GridSize  g{ 40, 36, 6 };
+  dcv::FileHeader h;
+  h.size = g;
+  h.constantSpline = true;
+  h.videoLayer = true;
+  h.videoCodec = dcv::VideoCodec::AV1;
+  h.quantizationOrigin = 0.0;
+  h.residualStep = 1.0;
+  h.numberOfPoints = 8;
+  h.residualLayer = dcv::EncodeVideoLayer(dcv::VideoCodec::AV1, Slices(g, 255, 2), g, 8, 30.0);
+  std::vector<uint8_t> bytes = dcv::SerializeFile(h, {});
+  dcv::FileHeader      back;
+  std::vector<uint8_t> payload;
+  dcv::ParseFile(bytes, "'v.dcv'", back, payload);
+  EXPECT_EQ(back.videoCodec, dcv::VideoCodec::AV1);
+  // The form byte: the first byte that differs from the same file labelled HEVC.
+  dcv::FileHeader hevc = h;
+  hevc.videoCodec = dcv::VideoCodec::HEVC;
+  const std::vector<uint8_t> other = dcv::SerializeFile(hevc, {});
+  ASSERT_EQ(other.size(), bytes.size());
+  const auto form = std::mismatch(bytes.begin(), bytes.end(), other.begin()).first;
+  ASSERT_NE(form, bytes.end());
+  EXPECT_EQ(*form, uint8_t(1 | 2 | 8 | 16)); // constant spline, unit step, video layer, AV1
+  *form = uint8_t(1 | 2 | 16);
+  const uint32_t crc = uint32_t(crc32(0L, bytes.data(), uInt(bytes.size() - 4)));
+  for (int i = 0; i < 4; ++i)
+    bytes[bytes.size() - 4 + std::size_t(i)] = uint8_t(crc >> (8 * i));
+  try
+  {
+    dcv::ParseFile(bytes, "'v.dcv'", back, payload);
+    ADD_FAILURE() << "form bit 4 alone was read";
+  }
+  catch (const dcv::FormatError & e)
+  {
+    EXPECT_NE(std::string(e.what()).find("form bit 4"), std::string::npos) << e.what();
+  }
 }

@@ -308,7 +308,7 @@ Decode(const CompressedFile & file, const DecodeLimits & limits)
   if (h.residualStep > 0.0)
   {
     a.residual = { h.residualStep,
-                   h.videoLayer ? DecodeVideoLayer(h.residualLayer, h.size, file.name)
+                   h.videoLayer ? DecodeVideoLayer(h.videoCodec, h.residualLayer, h.size, file.name)
                                 : DecodeResidualLayer(h.residualLayer, h.size, file.name, h.residualLevels) };
   }
   return a;

@@ -326,11 +326,11 @@ struct CornersCandidate
   }
 };
 
-/** Codes the video layer over the constant spline at the input's minimum (HEVC samples are unsigned), in
- * the bytes a file of `fileBytes` leaves it. */
+/** Codes the video layer over the constant spline at the input's minimum (video samples are unsigned), in
+ * the bytes a file of `fileBytes` leaves it: each codec, the one that decodes closest kept. */
 void
 TryVideo(const EncoderInput & input, CornersCandidate & candidate, std::size_t fileBytes, double minimum,
-         double maximum, const std::function<void(double)> & tried)
+         double maximum, const std::vector<VideoCodec> & codecs, const std::function<void(double)> & tried)
 {
   const PixelType type = input.header.pixelType;
   const double    step = VideoStep(double(maximum) - double(minimum), IsInteger(type));
@@ -341,18 +341,26 @@ TryVideo(const EncoderInput & input, CornersCandidate & candidate, std::size_t f
   const std::size_t room = LayerRoom(h, step, fileBytes, 0);
   if (room < MinimumCodestream)
     return;
-  // Slices x265 cannot code (larger than HEVC's pictures may be) leave the other candidates, as a budget
-  // too small for a stream does.
-  try
+  for (const VideoCodec codec : codecs)
   {
-    candidate.video = ChooseVideoLayer(input.voxels, type, input.header.size, minimum, step, room, tried);
-  }
-  catch (const std::runtime_error &)
-  {
-    candidate.video = VideoChoice();
+    // Slices a codec cannot code (larger than its pictures may be) leave the other candidates, as a budget
+    // too small for a stream does.
+    VideoChoice choice;
+    try
+    {
+      choice = ChooseVideoLayer(codec, input.voxels, type, input.header.size, minimum, step, room, tried);
+    }
+    catch (const std::runtime_error &)
+    {
+      choice = VideoChoice();
+    }
+    if (!choice.stream.empty() &&
+        (candidate.video.stream.empty() || choice.squaredError < candidate.video.squaredError))
+      candidate.video = std::move(choice);
   }
   if (candidate.video.stream.empty())
     return;
+  h.videoCodec = candidate.video.codec;
   // Kept when it decodes closer than every other candidate (ChooseLayers); the error the caller reports
   // is the best of both layers.
   if (tried)
@@ -364,7 +372,7 @@ TryVideo(const EncoderInput & input, CornersCandidate & candidate, std::size_t f
  * so far (the most the candidate's error will be). */
 CornersCandidate
 TryCorners(const EncoderInput & input, const FileHeader & header, std::size_t fileBytes, double minimum, double maximum,
-           double peak, bool video, const std::function<void(double)> & tried = {})
+           double peak, const std::vector<VideoCodec> & video, const std::function<void(double)> & tried = {})
 {
   const PixelType  type = input.header.pixelType;
   const double     step = ResidualStep(peak, IsInteger(type));
@@ -455,10 +463,10 @@ TryCorners(const EncoderInput & input, const FileHeader & header, std::size_t fi
   const auto & spacing = input.header.spacing;
   if (input.header.size.z > 1 && spacing[2] >= ThickSlices * std::max(spacing[0], spacing[1]))
     trial({ Wavelet::Irreversible97, Arrangement::Components, levels });
-  if (video)
+  if (!video.empty())
   {
     const double layer = search.BestError();
-    TryVideo(input, candidate, fileBytes, minimum, maximum, [&](double error) {
+    TryVideo(input, candidate, fileBytes, minimum, maximum, video, [&](double error) {
       if (tried)
         tried(std::min(layer, error));
     });
@@ -532,6 +540,7 @@ ChooseLayers(const EncoderInput & input, std::size_t fileBytes, bool pointsAband
     VideoChoice & v = corners.video;
     r.header.constantSpline = true;
     r.header.videoLayer = true;
+    r.header.videoCodec = v.codec;
     r.header.scale = { { 1, 1, 1 } };
     r.header.quantizationOrigin = corners.videoHeader.quantizationOrigin;
     r.header.residualStep = v.step;
@@ -539,7 +548,7 @@ ChooseLayers(const EncoderInput & input, std::size_t fileBytes, bool pointsAband
     r.quantizationStep = 1.0;
     r.squaredError = v.squaredError;
     r.approximation = Corners(input.header.size, r.header.scale, r.header.quantizationOrigin);
-    r.approximation.residual = { v.step, DecodeVideoLayer(v.stream, input.header.size, "video layer") };
+    r.approximation.residual = { v.step, DecodeVideoLayer(v.codec, v.stream, input.header.size, "video layer") };
     r.header.residualLayer = std::move(v.stream);
     payload.clear();
   }
@@ -634,7 +643,7 @@ Run(const EncoderInput & input, const EncoderOptions & o, bool coded, std::vecto
                                         range.first,
                                         range.second,
                                         parameters.peak,
-                                        o.videoLayer,
+                                        o.videoLayer ? o.videoCodecs : std::vector<VideoCodec>(),
                                         [&](double error) { cornersBound.store(error); });
         r.timings.residualLayer += std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
         return c;

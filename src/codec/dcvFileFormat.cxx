@@ -45,7 +45,8 @@ constexpr uint8_t FlagForm = 128;         // a form byte follows the scale (with
 constexpr uint8_t FormConstant = 1;       // no points: the spline is the constant q0; no q, n, L, payload
 constexpr uint8_t FormUnitStep = 2;       // the residual step is 1 and is not stored
 constexpr uint8_t FormCompact = 4;        // the residual layer is stored compact (dcvResidualLayer.h, CompactLayer)
-constexpr uint8_t FormVideo = 8;          // the residual layer is an HEVC stream (dcvVideoLayer.h)
+constexpr uint8_t FormVideo = 8;          // the residual layer is a video stream, HEVC (dcvVideoLayer.h)
+constexpr uint8_t FormAV1 = 16;           // ... AV1 (with FormVideo)
 
 /** The permutations of the axes a direction code names: row r of the matrix is +-1 at column
  * Permutations[code & 7][r]. */
@@ -295,7 +296,8 @@ SerializeFile(const FileHeader & h, const std::vector<uint8_t> & payload)
   std::vector<uint8_t> compact;
   const bool           compacted = residual && !h.videoLayer && CompactLayer(h.residualLayer, h.size, compact);
   const uint8_t form = uint8_t((h.constantSpline ? FormConstant : 0) | (h.residualStep == 1.0 ? FormUnitStep : 0) |
-                               (compacted ? FormCompact : 0) | (h.videoLayer ? FormVideo : 0));
+                               (compacted ? FormCompact : 0) | (h.videoLayer ? FormVideo : 0) |
+                               (h.videoLayer && h.videoCodec == VideoCodec::AV1 ? FormAV1 : 0));
   const std::vector<uint8_t> & layer = compacted ? compact : h.residualLayer;
   w.Bytes(Magic, 4);
   w.U8(FileHeader::Version);
@@ -472,7 +474,7 @@ ParseFile(const std::vector<uint8_t> & bytes, const std::string & name, FileHead
       throw FormatError(name + ": invalid voxel spacing");
   }
   const uint8_t form = (flags & FlagForm) ? r.U8("header") : 0;
-  if (form & ~(FormConstant | FormUnitStep | FormCompact | FormVideo))
+  if (form & ~(FormConstant | FormUnitStep | FormCompact | FormVideo | FormAV1))
   {
     throw FormatError(name + ": unknown form bits " + std::to_string(form));
   }
@@ -482,7 +484,12 @@ ParseFile(const std::vector<uint8_t> & bytes, const std::string & name, FileHead
                              "and no inter-slice wavelet");
   }
   h.constantSpline = (form & FormConstant) != 0;
+  if ((form & FormAV1) && !(form & FormVideo))
+  {
+    throw FormatError(name + ": form bit 4 (AV1) without a video layer (form bit 3)");
+  }
   h.videoLayer = (form & FormVideo) != 0;
+  h.videoCodec = (form & FormAV1) ? VideoCodec::AV1 : VideoCodec::HEVC;
   h.quantizationOrigin = r.F64("header");
   if (h.constantSpline)
   {

@@ -150,13 +150,13 @@ std::string
 FormatPSNR(double psnr);
 
 /** The residual layer as compress and info print it: the bytes it takes in the file, and those of the whole
- * JPEG 2000 codestream a decoder rebuilds from them (its markers restored), or of the HEVC stream of a video
+ * JPEG 2000 codestream a decoder rebuilds from them (its markers restored), or of the HEVC or AV1 stream of a video
  * layer; "none" without a layer. */
 std::string
 FormatResidualLayer(const FileHeader & header);
 
 /** How a file's bytes split: "points P (p%), layer L (l%), header and metadata H (h%)"; the points are the
- * payload, the layer is its stored bytes (JPEG 2000 or HEVC). */
+ * payload, the layer is its stored bytes (JPEG 2000, HEVC or AV1). */
 std::string
 FormatByteSplit(const FileHeader & header, std::size_t payloadBytes, std::size_t fileBytes);
 

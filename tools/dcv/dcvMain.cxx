@@ -265,8 +265,20 @@ AddTargetOptions(CLI::App & command, EncoderOptions & e)
   command.add_flag("!--no-residual-layer",
                    e.residualLayer,
                    "With --bpv, points only: neither a JPEG 2000 residual layer nor a video layer is tried");
-  command.add_flag(
-    "!--no-video-layer", e.videoLayer, "With --bpv, no video layer (HEVC) is tried: the points and JPEG 2000 only");
+  command.add_flag("!--no-video-layer",
+                   e.videoLayer,
+                   "With --bpv, no video layer (HEVC or AV1) is tried: the points and JPEG 2000 only");
+  command
+    .add_option_function<std::string>(
+      "--video-codec",
+      [&e](const std::string & codec) {
+        e.videoCodecs = codec == "hevc"  ? std::vector<VideoCodec>{ VideoCodec::HEVC }
+                        : codec == "av1" ? std::vector<VideoCodec>{ VideoCodec::AV1 }
+                                         : std::vector<VideoCodec>{ VideoCodec::HEVC, VideoCodec::AV1 };
+      },
+      "With --bpv, the video layer's codec: both (default: each tried, the closer kept), hevc or av1 (about "
+      "half the video layer's time)")
+    ->check(CLI::IsMember({ "both", "hevc", "av1" }));
   command.add_option("--step",
                      e.quantizationStep,
                      "Quantization step of the values (0: with --bpv the best of 1, 2 and 4 times 1/64 of the peak, "
@@ -291,7 +303,8 @@ FormatResidualLayer(const FileHeader & header)
   if (header.residualLayer.empty())
     return "none";
   if (header.videoLayer)
-    return std::to_string(header.residualLayer.size()) + " bytes (an HEVC stream)";
+    return std::to_string(header.residualLayer.size()) +
+           (header.videoCodec == VideoCodec::AV1 ? " bytes (an AV1 stream)" : " bytes (an HEVC stream)");
   return std::to_string(StoredLayerBytes(header.residualLayer, header.size)) + " bytes (a JPEG 2000 codestream of " +
          std::to_string(header.residualLayer.size()) + ")";
 }
