@@ -42,8 +42,9 @@ struct EncoderOptions
 {
   /** Size of the whole .dcv file in bits per voxel (0: off). The point count, and the quantization step
    * when QuantizationStep is 0, are chosen so that the file fills 97% to 100% of it (dcv::MinimumFileBytes);
-   * a video layer's stream grows in steps, and on small volumes may fill a little less, and where x265's
-   * finest rate factor already fits (its lossless stream not), the file is that stream, however short. */
+   * a video layer's stream grows in steps: an HEVC stream on small volumes may fill a little less, an AV1
+   * stream at least dcv::AV1MinimumFill of it, and where the finest quality already fits (its lossless
+   * stream not), the file is that stream, however short. */
   double bitsPerVoxel{ 0.0 };
   /** Quality target in dB (0: off): the smallest file whose decoded PSNR reaches it. */
   double psnr{ 0.0 };

@@ -42,6 +42,11 @@ namespace dcv
 DelaunayCompression_EXPORT const char *
 VideoCodecName(VideoCodec codec);
 
+/** The codecs a video layer's name asks the encoder to try: "both" (HEVC and AV1), "hevc" or "av1" (as
+ * `dcv compress --video-codec` and the Slicer modules take them). Throws std::invalid_argument otherwise. */
+DelaunayCompression_EXPORT std::vector<VideoCodec>
+                           ParseVideoCodecs(const std::string & name);
+
 /** The most bits a video layer's samples take (both codecs code 8, 10 or 12). */
 constexpr int32_t VideoMaximumDepth = 12;
 
@@ -53,6 +58,12 @@ VideoDepth(double largest);
  * 2^12 - 1 rounded up; for real data the range over 2^12 - 1. Every sample fits 12 bits. */
 DelaunayCompression_EXPORT double
 VideoStep(double range, bool integer);
+
+/** The least share of a budget an AV1 video layer's file fills: libaom's quality has 64 levels, one level
+ * moving the size by 6% to 12% on the dev volumes, so the finest level that fits takes at least about 88%
+ * of what the coarser one left over (ct-avm-4mm at 0.03125 bpv: 8,495 bytes of 9,196, the next level 39
+ * bytes too many). The file keeps it where it decodes closer than every stream that fills more. */
+constexpr double AV1MinimumFill = 0.88;
 
 /** The quality of a lossless video layer (HEVC's transquant bypass, AV1's lossless mode: the samples
  * decode exactly). */

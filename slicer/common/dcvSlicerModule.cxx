@@ -16,6 +16,7 @@
  *
  *=========================================================================*/
 #include "dcvSlicerModule.h"
+#include "dcvVideoLayer.h"
 
 #include "dcvTools.h"
 
@@ -603,6 +604,14 @@ EncoderOptionsFrom(const Arguments & arguments)
   }
   o.residualLayer = !arguments.Boolean("noResidualLayer");
   o.videoLayer = !arguments.Boolean("noVideoLayer");
+  try
+  {
+    o.videoCodecs = ParseVideoCodecs(arguments.String("videoCodec"));
+  }
+  catch (const std::invalid_argument & e)
+  {
+    throw tools::Failure(std::string("--videoCodec: ") + e.what());
+  }
   o.quantizationStep = arguments.Double("quantizationStep");
   o.domainSigma = arguments.Double("domainSigma");
   o.rangeSigma = arguments.Double("rangeSigma");

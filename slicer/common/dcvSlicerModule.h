@@ -159,8 +159,8 @@ private:
 };
 
 /** The encoder's options from the parameters DCVCompress and DCVApproximate share (bpv, psnr, mode,
- * noResidualLayer, noVideoLayer, step, domainSigma, rangeSigma, alpha, scale): a PSNR above 0 replaces the bit
- * rate; every value checked as the library checks it (dcv::tools::Failure naming the option). */
+ * noResidualLayer, noVideoLayer, videoCodec, step, domainSigma, rangeSigma, alpha, scale): a PSNR above 0 replaces the
+ * bit rate; every value checked as the library checks it (dcv::tools::Failure naming the option). */
 EncoderOptions
 EncoderOptionsFrom(const Arguments & arguments);
 

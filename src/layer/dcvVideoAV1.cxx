@@ -280,7 +280,11 @@ DecodeAV1Rows(const std::vector<uint8_t> & stream, const GridSize & grid, const 
 std::string
 AV1LibraryVersions()
 {
-  return std::string("libaom ") + aom_codec_version_str() + ", dav1d " + dav1d_version();
+  // libaom says "v3.6.0".
+  std::string aom = aom_codec_version_str();
+  if (!aom.empty() && aom[0] == 'v')
+    aom.erase(0, 1);
+  return "libaom " + aom + ", dav1d " + dav1d_version();
 }
 
 } // namespace dcv

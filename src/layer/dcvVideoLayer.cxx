@@ -108,6 +108,18 @@ VideoCodecName(VideoCodec codec)
   return codec == VideoCodec::AV1 ? "AV1" : "HEVC";
 }
 
+std::vector<VideoCodec>
+ParseVideoCodecs(const std::string & name)
+{
+  if (name == "both")
+    return { VideoCodec::HEVC, VideoCodec::AV1 };
+  if (name == "hevc")
+    return { VideoCodec::HEVC };
+  if (name == "av1")
+    return { VideoCodec::AV1 };
+  throw std::invalid_argument("unknown video codec '" + name + "' (both, hevc or av1)");
+}
+
 double
 VideoCoarsest(VideoCodec codec)
 {

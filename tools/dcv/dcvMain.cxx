@@ -22,6 +22,7 @@
 #include "dcvProgress.h"
 #include "dcvResidualLayer.h"
 #include "dcvVersion.h"
+#include "dcvVideoLayer.h"
 
 #include "itkMacro.h"
 #include "itkMultiThreaderBase.h"
@@ -271,11 +272,7 @@ AddTargetOptions(CLI::App & command, EncoderOptions & e)
   command
     .add_option_function<std::string>(
       "--video-codec",
-      [&e](const std::string & codec) {
-        e.videoCodecs = codec == "hevc"  ? std::vector<VideoCodec>{ VideoCodec::HEVC }
-                        : codec == "av1" ? std::vector<VideoCodec>{ VideoCodec::AV1 }
-                                         : std::vector<VideoCodec>{ VideoCodec::HEVC, VideoCodec::AV1 };
-      },
+      [&e](const std::string & codec) { e.videoCodecs = ParseVideoCodecs(codec); },
       "With --bpv, the video layer's codec: both (default: each tried, the closer kept), hevc or av1 (about "
       "half the video layer's time)")
     ->check(CLI::IsMember({ "both", "hevc", "av1" }));
