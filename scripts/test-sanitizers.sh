@@ -28,7 +28,7 @@ supp="$PWD/test/sanitizers"
 # A report aborts the process (halt_on_error) and is written to $reports/KIND.PID, not to the output a
 # test may compare.
 # max_malloc_fill_size: ASan fills every block it hands out, as glibc's perturbation does in the Release
-# build (x265 3.5 reads heap memory it never wrote; src/layer/dcvVideoLayer.cxx), so that the tests of the
+# build (x265 3.5 reads heap memory it never wrote; src/layer/dcvVideoHEVC.cxx), so that the tests of the
 # same stream every time hold here too (ASan fills only the first 4 KiB by default).
 export ASAN_OPTIONS="halt_on_error=1:abort_on_error=1:detect_leaks=1:check_initialization_order=1:strict_init_order=1:detect_stack_use_after_return=1:max_malloc_fill_size=2147483647:log_path=$reports/asan"
 export UBSAN_OPTIONS="halt_on_error=1:abort_on_error=1:print_stacktrace=1:log_path=$reports/ubsan:suppressions=$supp/ubsan.supp"
