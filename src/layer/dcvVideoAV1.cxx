@@ -120,18 +120,19 @@ EncodeAV1(const std::vector<uint16_t> & samples, const GridSize & grid, int32_t 
   cfg.rc_end_usage = AOM_Q;
   cfg.kf_max_dist = uint32_t(std::max(grid.z, 1)); // one key frame: the first slice
   std::unique_ptr<aom_codec_ctx_t, EncoderCloser> codec(new aom_codec_ctx_t{});
-  if (aom_codec_enc_init(codec.get(), iface, &cfg, depth > 8 ? AOM_CODEC_USE_HIGHBITDEPTH : 0) != AOM_CODEC_OK)
-  {
-    const std::string why = codec->err_detail ? codec->err_detail : aom_codec_err_to_string(codec->err);
+  // On failure libaom has already destroyed the context (its error detail with it).
+  if (const aom_codec_err_t e =
+        aom_codec_enc_init(codec.get(), iface, &cfg, depth > 8 ? AOM_CODEC_USE_HIGHBITDEPTH : 0);
+      e != AOM_CODEC_OK)
     throw std::runtime_error("libaom cannot open an encoder for " + std::to_string(width) + "x" +
-                             std::to_string(height) + " " + std::to_string(depth) + "-bit slices: " + why);
-  }
+                             std::to_string(height) + " " + std::to_string(depth) +
+                             "-bit slices: " + aom_codec_err_to_string(e));
   aom_codec_ctx_t & c = *codec;
   // Speed 4 of libaom's good-quality mode; the search looks for the level at speed 6 (sizes alone).
   Check(c, aom_codec_control(&c, AOME_SET_CPUUSED, search ? 6 : 4), "speed");
   // Row-based threads.
   Check(c, aom_codec_control(&c, AV1E_SET_ROW_MT, 1u), "row threads");
-  // libaom's quality is one of 64 levels (a level moves the size by 6% to 11%): changing it, or its
+  // libaom's quality is one of 64 levels (a level moves the size by 6% to 12%): changing it, or its
   // bounds, between slices moved the size by whole groups of pictures, not in proportion.
   if (quality == VideoLossless)
     Check(c, aom_codec_control(&c, AV1E_SET_LOSSLESS, 1u), "lossless");
