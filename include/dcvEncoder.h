@@ -69,8 +69,8 @@ struct EncoderOptions
    * over a constant spline, dcvVideoLayer.h), kept where it decodes closest. Off: JPEG 2000 layers only. */
   bool videoLayer{ true };
   /** The video layer's codecs, each tried, the stream that decodes closest kept: both by default (AV1 won
-   * on most dev volumes, HEVC on the 5 mm CT series above 0.03125 bpv); one alone takes about half the
-   * time. */
+   * on most dev volumes, HEVC on the 5 mm CT series above 0.03125 bpv); one alone codes the video layer in
+   * about half the time. */
   std::vector<VideoCodec> videoCodecs{ VideoCodec::HEVC, VideoCodec::AV1 };
   /** Key/value pairs stored in the file's metadata block (they count against the bit budget). */
   std::vector<std::pair<std::string, std::string>> metadata;
