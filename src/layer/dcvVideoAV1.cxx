@@ -225,18 +225,8 @@ DecodeAV1Rows(const std::vector<uint8_t> & stream, const GridSize & grid, const 
       throw fail("pictures smaller than the slices");
     if (picture.frame_hdr && picture.frame_hdr->film_grain.present)
       throw fail("film grain");
-    const auto * plane = static_cast<const uint8_t *>(picture.data[0]);
-    for (int32_t y = 0; y < grid.y; ++y)
-    {
-      const uint8_t * row = plane + std::ptrdiff_t(y) * picture.stride[0];
-      if (picture.p.bpc == 8)
-        for (int32_t x = 0; x < grid.x; ++x)
-          out[std::size_t(x)] = row[x];
-      else
-        for (int32_t x = 0; x < grid.x; ++x)
-          out[std::size_t(x)] = reinterpret_cast<const uint16_t *>(row)[x];
-      sink(y, z, out.data());
-    }
+    SendSliceRows(
+      static_cast<const uint8_t *>(picture.data[0]), picture.stride[0], picture.p.bpc > 8, grid, z, out, sink);
     ++z;
   };
   struct DataUnref

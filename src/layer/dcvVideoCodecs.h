@@ -25,6 +25,12 @@
 namespace dcv
 {
 
+/** The rows of slice z from a decoded picture's plane (8-bit samples, or 16-bit where `wide`) to `sink`,
+ * through `row` (size x): what both decoders give. */
+void
+SendSliceRows(const uint8_t * plane, std::ptrdiff_t stride, bool wide, const GridSize & grid, int32_t z,
+              std::vector<int32_t> & row, const std::function<void(int32_t y, int32_t z, const int32_t * row)> & sink);
+
 /** Samples 0 to 2^depth - 1 (grid order) as an HEVC stream at x265's rate factor `quality` (0 to 51, or
  * VideoLossless); `search`: x265's faster preset, for the search of the factor by size. */
 std::vector<uint8_t>

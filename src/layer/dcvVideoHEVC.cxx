@@ -263,17 +263,7 @@ DecodeHEVCRows(const std::vector<uint8_t> & stream, const GridSize & grid, const
         throw fail("pictures smaller than the slices");
       int             stride = 0;
       const uint8_t * plane = de265_get_image_plane(image, 0, &stride);
-      for (int32_t y = 0; y < grid.y; ++y)
-      {
-        const uint8_t * row = plane + std::ptrdiff_t(y) * stride;
-        if (depth == 8)
-          for (int32_t x = 0; x < grid.x; ++x)
-            out[std::size_t(x)] = row[x];
-        else
-          for (int32_t x = 0; x < grid.x; ++x)
-            out[std::size_t(x)] = reinterpret_cast<const uint16_t *>(row)[x];
-        sink(y, z, out.data());
-      }
+      SendSliceRows(plane, stride, depth > 8, grid, z, out, sink);
       ++z;
     }
   };

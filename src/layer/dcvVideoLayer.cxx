@@ -166,6 +166,24 @@ EncodeVideoLayer(VideoCodec codec, const std::vector<uint16_t> & samples, const 
   return Encode(codec, samples, grid, depth, quality, false);
 }
 
+void
+SendSliceRows(const uint8_t * plane, std::ptrdiff_t stride, bool wide, const GridSize & grid, int32_t z,
+              std::vector<int32_t> & row, const std::function<void(int32_t y, int32_t z, const int32_t * row)> & sink)
+{
+  row.resize(std::size_t(grid.x));
+  for (int32_t y = 0; y < grid.y; ++y)
+  {
+    const uint8_t * in = plane + std::ptrdiff_t(y) * stride;
+    if (wide)
+      for (int32_t x = 0; x < grid.x; ++x)
+        row[std::size_t(x)] = reinterpret_cast<const uint16_t *>(in)[x];
+    else
+      for (int32_t x = 0; x < grid.x; ++x)
+        row[std::size_t(x)] = in[x];
+    sink(y, z, row.data());
+  }
+}
+
 ResidualSamples
 DecodeVideoLayer(VideoCodec codec, const std::vector<uint8_t> & stream, const GridSize & grid, const std::string & name)
 {
