@@ -23,6 +23,7 @@
 #include "itkDCVEncoder.h"
 
 #include <algorithm>
+#include <exception>
 #include <filesystem>
 #include <fstream>
 #include <sstream>
@@ -42,9 +43,19 @@ HighestThreadNice()
   int highest = -20;
   for (const auto & task : std::filesystem::directory_iterator("/proc/self/task"))
   {
-    std::ifstream     in(task.path() / "stat");
-    const std::string stat((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
-    const auto        end = stat.rfind(')'); // after the command's name, which may hold spaces
+    // A thread that ends between the listing and the read makes the read fail (ESRCH), which
+    // libstdc++'s stream buffer reports by throwing: such a thread has no priority to check.
+    std::string stat;
+    try
+    {
+      std::ifstream in(task.path() / "stat");
+      stat.assign(std::istreambuf_iterator<char>(in), std::istreambuf_iterator<char>());
+    }
+    catch (const std::exception &)
+    {
+      continue;
+    }
+    const auto end = stat.rfind(')'); // after the command's name, which may hold spaces
     if (end == std::string::npos)
       continue;                                      // the thread ended meanwhile
     std::istringstream fields(stat.substr(end + 1)); // from field 3 (the state) on
