@@ -20,6 +20,7 @@
 
 #include "DelaunayCompressionExport.h"
 #include "dcvApproximation.h"
+#include "dcvBoundedLayer.h"
 #include "dcvFileFormat.h"
 #include "dcvResidualLayer.h"
 #include "dcvVideoLayer.h"
@@ -59,6 +60,10 @@ DelaunayCompression_EXPORT std::vector<uint8_t>
 DelaunayCompression_EXPORT Approximation
 DecodePayload(const std::vector<uint8_t> & payload, const GridSize & grid, uint32_t count, double q0, double q,
               const std::string & name, const GridScale & scale = { { 1, 1, 1 } });
+
+/** The constant spline (form bit 0): the 8 corners of the grid, all at `value`, and their tetrahedra. */
+DelaunayCompression_EXPORT Approximation
+ConstantSpline(const GridSize & grid, const GridScale & scale, double value);
 
 /** The spline of a parsed file alone: its points, values (dequantized) and tetrahedra, without the
  * residual layer (voxels, not part of the mesh; `residual` is left empty). What a mesh export needs:
@@ -101,7 +106,14 @@ DecodeVolume(const CompressedFile & file, T * out, const DecodeLimits & limits =
         std::fill_n(voxels, h.size.x, value);
       detail::AddResidualToRow(h.residualStep, row, voxels, uint64_t(h.size.x));
     };
-    if (h.videoLayer)
+    if (h.boundedLayer)
+    {
+      const ResidualSamples samples = DecodeBoundedLayer(h.residualLayer, h.size, file.name);
+      for (int32_t z = 0; z < h.size.z; ++z)
+        for (int32_t y = 0; y < h.size.y; ++y)
+          add(y, z, samples.data() + h.size.Offset(0, y, z));
+    }
+    else if (h.videoLayer)
       DecodeVideoRows(h.videoCodec, h.residualLayer, h.size, file.name, add);
     else
       DecodeResidualRows(h.residualLayer, h.size, file.name, h.residualLevels, add);

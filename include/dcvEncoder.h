@@ -37,7 +37,7 @@
 namespace dcv
 {
 
-/** What to encode and how. One target: BitsPerVoxel, else PSNR, else NumberOfPoints. */
+/** What to encode and how. One target: BitsPerVoxel, PSNR or MaximumError, else NumberOfPoints. */
 struct EncoderOptions
 {
   /** Size of the whole .dcv file in bits per voxel (0: off). The point count, and the quantization step
@@ -48,7 +48,12 @@ struct EncoderOptions
   double bitsPerVoxel{ 0.0 };
   /** Quality target in dB (0: off): the smallest file whose decoded PSNR reaches it. */
   double psnr{ 0.0 };
-  /** Number of significant points when neither target is set (at least 8: the corners). */
+  /** A bound on every voxel's error, in the input's units (negative: off; 0: lossless, bit for bit): the
+   * smallest file the encoder makes with every decoded voxel within it of the input (a bounded-error layer
+   * over a constant spline, dcvBoundedLayer.h). Integers keep its whole part (|x - x'| is a whole number);
+   * floats need at least SmallestMaximumError(). Not with BitsPerVoxel or PSNR. */
+  double maximumError{ -1.0 };
+  /** Number of significant points when no other target is set (at least 8: the corners). */
   std::size_t numberOfPoints{ 10000 };
   /** Step of the vertex values (0: automatic: with BitsPerVoxel the best of 1, 2 and 4 times 1/64 of
    * the peak, with PSNR 1/64 of the peak or less when the target needs it, else 1/64 of the peak). */
@@ -132,7 +137,9 @@ struct EncoderInput
 {
   const float * voxels{ nullptr };
   const float * smoothed{ nullptr };
-  FileHeader    header; // pixelType, size, spacing, origin, direction
+  /** The voxels at full precision (same layout), for MaximumError; `voxels` and `smoothed` are then not read. */
+  const double * exact{ nullptr };
+  FileHeader     header; // pixelType, size, spacing, origin, direction
   /** When set, called once the encoder no longer reads I* (the points are done, the residual layers
    * follow), so that its owner can free it for them; `smoothed` is not read after the call. */
   std::function<void()> releaseSmoothed;
@@ -142,6 +149,12 @@ struct EncoderInput
  * in the ratios of the spacings, within 5% where they allow. */
 DelaunayCompression_EXPORT GridScale
 AutomaticScale(const std::array<double, 3> & spacing);
+
+/** The smallest MaximumError a volume of this pixel type and range can keep: 0 for integers; for floats the
+ * spacing of the pixel type's values near the largest magnitude, or the range over 4e9 (the indices' 32 bits),
+ * whichever is larger. */
+DelaunayCompression_EXPORT double
+SmallestMaximumError(PixelType type, double minimum, double maximum);
 
 /** The PSNR peak of an encoder input (255 for 8-bit data, else max - min). */
 DelaunayCompression_EXPORT double
@@ -176,6 +189,8 @@ struct EncoderResult
   double smoothedPSNR{ 0.0 };
   /** The PSNR peak (255 for 8-bit data, else max - min of the input). */
   double peak{ 0.0 };
+  /** The bound every decoded voxel keeps (MaximumError as the file states it; negative: none). */
+  double maximumError{ -1.0 };
   /** Point-count steps of rate control after the first run of the method. */
   unsigned adjustments{ 0 };
   /** Seconds of each stage, and of the whole call. */

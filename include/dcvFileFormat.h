@@ -128,6 +128,8 @@ struct FileHeader
   static constexpr uint8_t Version = 1;
   /** The mode of a file whose points were not chosen by the encoder (written as a mesh). */
   static constexpr uint8_t UnknownMode = 255;
+  /** The mode of a file with a bounded-error layer and no points (EncoderOptions::maximumError). */
+  static constexpr uint8_t BoundedMode = 4;
 
   PixelType             pixelType{ PixelType::UInt8 };
   uint8_t               mode{ 0 }; // informative: the dcv::Mode that encoded it, or UnknownMode
@@ -152,6 +154,9 @@ struct FileHeader
    * spline, without the inter-slice wavelet; HEVC, or with form bit 4 AV1. */
   bool       videoLayer{ false };
   VideoCodec videoCodec{ VideoCodec::HEVC };
+  /** The residual layer is a bounded-error layer (form bit 5, dcvBoundedLayer.h): only over a constant spline,
+   * without the inter-slice wavelet; every decoded voxel is within the bound it states of the input. */
+  bool boundedLayer{ false };
 };
 
 /** The metadata key whose value holds the headers of the DICOM files a volume came from (docs/format.md,

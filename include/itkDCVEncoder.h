@@ -52,6 +52,18 @@ public:
     dcv::CheckGrid(m_Input.header.size);
     m_Input.header.pixelType = dcv::PixelTypeOf<PixelType>();
     dcv::CheckEncodingMemory(m_Input.header.size, options); // before the volume is copied
+    if (options.maximumError >= 0.0)
+    {
+      // The bounded-error mode reads the voxels exactly (doubles hold every 32-bit integer) and no I*.
+      m_Exact.reserve(region.GetNumberOfPixels());
+      for (ImageRegionConstIterator<TImage> it(image, region); !it.IsAtEnd(); ++it)
+      {
+        m_Exact.push_back(static_cast<double>(it.Get()));
+      }
+      m_Input.exact = m_Exact.data();
+      dcv::CheckOptions(options, m_Input);
+      return;
+    }
     m_Voxels.reserve(region.GetNumberOfPixels());
     for (ImageRegionConstIterator<TImage> it(image, region); !it.IsAtEnd(); ++it)
     {
@@ -113,6 +125,7 @@ public:
 
 private:
   std::vector<float>       m_Voxels;
+  std::vector<double>      m_Exact;
   Image<float, 3>::Pointer m_Smoothed;
   dcv::EncoderInput        m_Input;
   double                   m_SmoothingSeconds{ 0.0 };

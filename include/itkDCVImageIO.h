@@ -38,7 +38,8 @@ namespace itk
  * what `dcv compress` writes with the same options. The target is the last one set:
  * - BitsPerVoxel (default 0.125): the whole file in bits per voxel, as `dcv compress --bpv`;
  * - PSNR (dB; 0 until set): the smallest file whose decoded PSNR reaches it, as `--psnr`;
- * - NumberOfPoints (10000 until set): a point count, as `--points`.
+ * - NumberOfPoints (10000 until set): a point count, as `--points`;
+ * - MaximumError (negative until set): every voxel within it of the input, 0 lossless, as `--max-error`.
  * Also Mode (default dcv::Mode::Best) and QuantizationStep (default 0: automatic, as `--step`).
  * UseCompression and CompressionLevel have no effect: a .dcv file is always compressed.
  * 8, 16 and 32-bit integer, float and double scalar 3D images are written; others are refused.
@@ -78,6 +79,13 @@ public:
   GetPSNR() const
   {
     return m_Options.psnr;
+  }
+  void
+  SetMaximumError(double maximumError);
+  double
+  GetMaximumError() const
+  {
+    return m_Options.maximumError;
   }
   void
   SetNumberOfPoints(SizeValueType numberOfPoints);

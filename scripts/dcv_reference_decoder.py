@@ -61,7 +61,7 @@ class DamagedFile(Exception):
 MAGIC = b"\x89DCV"
 VERSION = 1
 PIXEL_TYPES = {1: "uint8", 2: "int8", 3: "uint16", 4: "int16", 5: "uint32", 6: "int32", 7: "float32", 8: "float64"}
-MODES = {0: "silva", 1: "dec", 2: "dec+com", 3: "best"}
+MODES = {0: "silva", 1: "dec", 2: "dec+com", 3: "best", 4: "bounded-error"}
 FLAG_DIRECTION = 1
 FLAG_METADATA = 2
 FLAG_SCALE = 4
@@ -75,6 +75,7 @@ FORM_UNIT_STEP = 2  # the residual step is 1, not stored
 FORM_COMPACT = 4  # the residual layer's codestream is stored compact
 FORM_VIDEO = 8  # the residual layer is a video stream (the video layer): HEVC, or with FORM_AV1 AV1
 FORM_AV1 = 16
+FORM_BOUNDED = 32  # the residual layer is a bounded-error layer
 # Section "Header", direction code: row r is +-1 at column AXIS_PERMUTATIONS[code & 7][r].
 AXIS_PERMUTATIONS = ((0, 1, 2), (0, 2, 1), (1, 0, 2), (1, 2, 0), (2, 0, 1), (2, 1, 0))
 # Section "Inter-slice wavelet": band weights in 1/4096 (low band after l levels, high band of level k).
@@ -227,13 +228,17 @@ def parse_container(data):
     form = 0
     if flags & FLAG_FORM:
         (form,) = f.unpack("B", "header")
-        if form & ~(FORM_CONSTANT | FORM_UNIT_STEP | FORM_COMPACT | FORM_VIDEO | FORM_AV1):
+        if form & ~(FORM_CONSTANT | FORM_UNIT_STEP | FORM_COMPACT | FORM_VIDEO | FORM_AV1 | FORM_BOUNDED):
             raise DamagedFile("unknown form bits %d" % form)
         if form & FORM_AV1 and not form & FORM_VIDEO:
             raise DamagedFile("form bit 4 (AV1) without a video layer (form bit 3)")
         if form & FORM_VIDEO and (not form & FORM_CONSTANT or form & FORM_COMPACT or flags & FLAG_INTER_SLICE):
             raise DamagedFile("a video layer (form bit 3) needs a constant spline (form bit 0), no compact form "
                               "and no inter-slice wavelet")
+        if form & FORM_BOUNDED and (not form & FORM_CONSTANT or form & (FORM_COMPACT | FORM_VIDEO | FORM_AV1) or
+                                    flags & FLAG_INTER_SLICE):
+            raise DamagedFile("a bounded-error layer (form bit 5) needs a constant spline (form bit 0), no compact "
+                              "form, no video layer and no inter-slice wavelet")
     if form & FORM_CONSTANT:
         (q0,) = f.unpack("d", "header")
         if not math.isfinite(q0):
@@ -598,6 +603,179 @@ def read_neighbours(path, n):
 
 
 # =========================================================================
+# Bounded-error layer (section "Bounded-error layer"; its streams use the arithmetic decoder and the signed
+# integers of the payload's sections above)
+# =========================================================================
+
+BOUNDED_HEADER = "diII"  # E (float64), m (int32), d (uint32), S (uint32)
+BOUNDED_ERROR_CAP = 1 << 28  # errors are kept capped at 2^28
+BOUNDED_BIAS_RESET = 256  # a bias context's sum and count halve when the count reaches it
+
+
+def bounded_layer_slab_slices(size):
+    """The slices of a slab: max(8, floor(2^22 / (size x size y))), at most size z."""
+    sx, sy, sz = size
+    return min(max(8, (1 << 22) // (sx * sy)), sz)
+
+
+def read_bounded_layer(layer, size):
+    """The fields of a bounded-error layer and its slabs' streams: (E, m, d, S, [stream of each slab]).
+    Every field and every slab length is checked before anything is decoded."""
+    if len(layer) < struct.calcsize("<" + BOUNDED_HEADER):
+        raise DamagedFile("damaged bounded-error layer (%d bytes)" % len(layer))
+    f = _Fields(layer, 0, len(layer))
+    bound, minimum, span, slab_slices = f.unpack(BOUNDED_HEADER, "bounded-error layer")
+    if not (math.isfinite(bound) and bound >= 0.0):
+        raise DamagedFile("damaged bounded-error layer (its bound is not a finite non-negative number)")
+    if minimum + span > 2 ** 31 - 1:
+        raise DamagedFile("damaged bounded-error layer (samples beyond 32 bits)")
+    if slab_slices != bounded_layer_slab_slices(size):
+        raise DamagedFile("damaged bounded-error layer (slabs of %d slices, not %d)"
+                          % (slab_slices, bounded_layer_slab_slices(size)))
+    slabs = -(-size[2] // slab_slices)
+    streams = []
+    for s in range(slabs):
+        if f.left() < 4:
+            raise DamagedFile("the bounded-error layer ends before slab %d of %d" % (s + 1, slabs))
+        (length,) = f.unpack("I", "bounded-error layer")
+        if f.left() < length:
+            raise DamagedFile("the bounded-error layer ends inside slab %d of %d" % (s + 1, slabs))
+        streams.append(f.take(length, "bounded-error layer"))
+    if f.left() != 0:
+        raise DamagedFile("%d bytes follow the bounded-error layer" % f.left())
+    return bound, minimum, span, slab_slices, streams
+
+
+def activity_bucket(a, buckets):
+    """a for a < 4, else min(C - 1, 2 f + bit f - 1 of a) with f = floor(log2 a)."""
+    if a < 4:
+        return a
+    f = a.bit_length() - 1
+    return min(buckets - 1, 2 * f + ((a >> (f - 1)) & 1))
+
+
+def decode_bounded_slab(d, sx, sy, slices, span):
+    """The values v = r - m of one slab's slices (grid order, x fastest), decoded from its stream alone."""
+    plane = sx * sy
+    top = span  # d: values are in [0, d]
+    modulus = span + 1  # M
+    half = modulus // 2  # H
+    cap = BOUNDED_ERROR_CAP
+    models = [SIntModel(6) for _ in range(32)]  # one per coding context bucket(a, 32)
+    bias_sum = [0] * 128  # per bias context bucket(a, 16) 8 + t
+    bias_count = [0] * 128
+    # The error planes e_1 .. e_7 and e_f (index 7) of two slices: slice z writes the planes of parity z & 1
+    # and reads those of slice z - 1 in the others; they start at 0 in each slab. The first voxel of a slice
+    # has no in-slice neighbour: its in-slice error terms are 0.
+    planes = [[[0] * plane for _ in range(8)] for _ in range(2)]
+    values = [0] * (slices * plane)
+    for z in range(slices):
+        current, previous = planes[z & 1], planes[(z + 1) & 1]
+        has_previous = z > 0
+        count = 7 if has_previous else 4
+        ef, pf = current[7], previous[7]
+        base = z * plane
+        below = base - plane  # the start of slice z - 1
+        for y in range(sy):
+            row = y * sx
+            for x in range(sx):
+                j = row + x
+                # In-slice neighbours (offsets in the slice): n, then w, nw, ne, each n's where it is missing.
+                jn = j - sx if y > 0 else (j - 1 if x > 0 else j)
+                jw = j - 1 if x > 0 else jn
+                jnw = j - sx - 1 if x > 0 and y > 0 else jn
+                jne = j - sx + 1 if y > 0 and x + 1 < sx else jn
+                first = jn == j
+                if first:  # the first voxel of a slice: all four are (x, y, z - 1), or 0
+                    vw = vn = vnw = vne = values[below + j] if has_previous else 0
+                else:
+                    vw, vn, vnw, vne = values[base + jw], values[base + jn], values[base + jnw], values[base + jne]
+                p = [vw + vn - vnw, vw + vne - vn, vn, vw]
+                if has_previous:
+                    vp = values[below + j]
+                    dw, dn = vw - values[below + jw], vn - values[below + jn]
+                    dnw, dne = vnw - values[below + jnw], vne - values[below + jne]
+                    p.append(vp + dw + dn - dnw)
+                    p.append(vp + (dw + dn + dne + dnw + 2) // 4)
+                    p.append(vp)
+                # Each predictor clamped to [0, d], weighted by the inverse square of its recent errors.
+                weight_sum = weighted = 0
+                for k in range(count):
+                    pk = p[k]
+                    if pk < 0:
+                        pk = p[k] = 0
+                    elif pk > top:
+                        pk = p[k] = top
+                    e = current[k]
+                    s = 0 if first else e[jw] + e[jn] + ((e[jnw] + e[jne]) >> 1)
+                    if has_previous:
+                        s += previous[k][j]
+                    # i_k = floor(2^30 / x'), x' = s_k + 1 with the bits below its 8 leading ones cleared.
+                    s += 1
+                    if s < 256:
+                        inverse = (1 << 30) // s
+                    else:
+                        shift = s.bit_length() - 8
+                        inverse = ((1 << 30) // (s >> shift)) >> shift
+                    weight = max(1, (inverse * inverse) >> 38)
+                    weight_sum += weight
+                    weighted += weight * pk
+                blend = (weighted + weight_sum // 2) // weight_sum
+                if first:
+                    activity = (pf[j] if has_previous else 0) + ((max(p) - min(p)) >> 1)
+                else:
+                    activity = ef[jw] + ef[jn] + ((ef[jnw] + ef[jne]) >> 1) + (pf[j] if has_previous else ef[jw]) + \
+                        ((max(p) - min(p)) >> 1)
+                texture = (vw > blend) + 2 * (vn > blend) + (4 * (p[6] > blend) if has_previous else 0)
+                b = activity_bucket(activity, 16) * 8 + texture
+                c = bias_count[b]
+                correction = (2 * bias_sum[b] + c) // (2 * c) if c > 0 else 0
+                prediction = blend + correction
+                prediction = 0 if prediction < 0 else (top if prediction > top else prediction)
+                # The residual, folded into [-H, M - H - 1]: the sum wraps back into [0, d].
+                residual = models[activity_bucket(activity, 32)].decode(d)
+                if residual < -half or residual >= modulus - half:
+                    raise DamagedFile("damaged bounded-error layer (a sample outside its range)")
+                v = prediction + residual
+                if v < 0:
+                    v += modulus
+                elif v > top:
+                    v -= modulus
+                values[base + j] = v
+                bias_sum[b] += residual
+                c += 1
+                if c == BOUNDED_BIAS_RESET:
+                    bias_sum[b] //= 2
+                    c = BOUNDED_BIAS_RESET // 2
+                bias_count[b] = c
+                for k in range(count):
+                    current[k][j] = min(abs(v - p[k]), cap)
+                for k in range(count, 7):  # a slab's first slice: predictors 5 to 7 take predictor 1's error
+                    current[k][j] = current[0][j]
+                ef[j] = min(abs(residual), cap)
+        if d.overrun:
+            raise DamagedFile("the bounded-error layer ends inside a slab")
+    return values
+
+
+def decode_bounded_layer(h):
+    """Section "Bounded-error layer": the samples r in grid order (x fastest), each slab decoded alone, each
+    stream read to its last byte and never past it."""
+    sx, sy, sz = h["size"]
+    _, minimum, span, slab_slices, streams = read_bounded_layer(h["residual_layer"], h["size"])
+    samples = []
+    for s, stream in enumerate(streams):
+        d = ArithmeticDecoder(stream)
+        slices = min(slab_slices, sz - s * slab_slices)
+        values = decode_bounded_slab(d, sx, sy, slices, span)
+        if d.position != len(stream):
+            raise DamagedFile("damaged bounded-error layer (%d bytes follow slab %d)"
+                              % (len(stream) - d.position, s + 1))
+        samples.extend(v + minimum for v in values)
+    return samples
+
+
+# =========================================================================
 # Command line
 # =========================================================================
 
@@ -759,6 +937,8 @@ def decode_residual_layer(h):
     import shutil
     import subprocess
     import tempfile
+    if h["form"] & FORM_BOUNDED:
+        return decode_bounded_layer(h)
     if h["form"] & FORM_AV1:
         return decode_av1_layer(h)
     if h["form"] & FORM_VIDEO:
@@ -821,6 +1001,8 @@ def print_header(h):
         print("residual_step", repr(h["residual_step"]))
         print("residual_levels", h["residual_levels"])
         print("residual_bytes", len(h["residual_layer"]))
+        if h["form"] & FORM_BOUNDED:  # the bound the layer states (checked when the layer was decoded)
+            print("maximum_error", repr(read_bounded_layer(h["residual_layer"], h["size"])[0]))
     for key, value in h["metadata"]:
         if key == DICOM_HEADER_KEY:
             mode, common, files = value

@@ -726,6 +726,23 @@ def plot(rows, outdir, peaks):
 
 # -------------------------------------------------------------------------------------------------------- main
 
+def list_volumes(data):
+    """The default volumes: every *.nrrd and every dicom-* series directory in `data`, sorted."""
+    return sorted(f for f in os.listdir(data)
+                  if f.endswith(".nrrd") or (f.startswith("dicom-") and os.path.isdir(os.path.join(data, f))))
+
+
+def load_volume(vpath, dcv, out):
+    """The (z, y, x) array of a *.nrrd file or a DICOM series directory. A series is given to dcv as the
+    directory itself (its DICOM attributes count in the file); the peers and the error measures get it as
+    dcv reads it (Hounsfield units), via `dcv convert` into out/NAME.nrrd."""
+    if not os.path.isdir(vpath):
+        return read_nrrd(vpath)
+    nrrd = os.path.join(out, os.path.basename(os.path.normpath(vpath)) + ".nrrd")
+    run([dcv, "convert", vpath, nrrd, "-f", "-q"])
+    return read_nrrd(nrrd)
+
+
 def volume_info(vname, vol):
     """(PSNR peak, note or None) for a volume."""
     if vol.dtype == np.uint8:
@@ -787,25 +804,14 @@ def main():
               if (c != "dcv" or not any(m.startswith("dcv") for m in missing))
               and all(shutil.which(t) for t in TOOLS.get(c, []))]
 
-    if args.volumes:
-        vols = args.volumes
-    else:
-        vols = sorted(f for f in os.listdir(args.data)
-                      if f.endswith(".nrrd") or (f.startswith("dicom-") and os.path.isdir(os.path.join(args.data, f))))
+    vols = args.volumes or list_volumes(args.data)
     os.makedirs(args.out, exist_ok=True)
     ctx = {"dcv": args.dcv, "av1_container": args.av1_container}
     rows = []
     peaks = {}
     for vname in vols:
         vpath = os.path.join(args.data, vname)
-        if os.path.isdir(vpath):
-            # A DICOM series: dcv compresses the directory itself (its DICOM attributes count against
-            # the budget); the peers and the PSNR get it as dcv reads it (Hounsfield units), via dcv convert.
-            nrrd = os.path.join(args.out, vname + ".nrrd")
-            run([args.dcv, "convert", vpath, nrrd, "-f", "-q"])
-            vol = read_nrrd(nrrd)
-        else:
-            vol = read_nrrd(vpath)
+        vol = load_volume(vpath, args.dcv, args.out)
         ctx["peak"], vnote = volume_info(vname, vol)
         peaks[vname] = ctx["peak"]
         ctx["samples"] = peer_samples(vol)

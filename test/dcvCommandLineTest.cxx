@@ -558,3 +558,53 @@ TEST_F(CommandLine, PointCountsBeyondTheVolumeAreRefused)
 }
 
 } // namespace
+
+TEST_F(CommandLine, MaximumErrorGivesLosslessAndBoundedFiles)
+{
+  const std::string phantom = Path("phantom.nrrd");
+  ASSERT_EQ(RunDcv("phantom " + phantom + " --size 24").status, 0);
+  using ImageType = itk::Image<uint8_t, 3>;
+  const auto original = itk::ReadImage<ImageType>(phantom);
+  for (const int bound : { 0, 3 })
+  {
+    const std::string packed = Path("bounded" + std::to_string(bound) + ".dcv");
+    const Result      c = RunDcv("compress " + phantom + " " + packed + " --max-error " + std::to_string(bound));
+    ASSERT_EQ(c.status, 0) << c.output;
+    EXPECT_NE(c.output.find("mode: bounded error"), std::string::npos) << c.output;
+    const std::string stated = bound == 0 ? "maximum error: 0 (lossless)" : "maximum error: 3 (every voxel";
+    EXPECT_NE(c.output.find(stated), std::string::npos) << c.output;
+    const Result info = RunDcv("info " + packed);
+    EXPECT_NE(info.output.find(stated), std::string::npos) << info.output;
+    EXPECT_NE(info.output.find("a bounded-error layer"), std::string::npos) << info.output;
+    const std::string decoded = Path("bounded" + std::to_string(bound) + ".nrrd");
+    ASSERT_EQ(RunDcv("decompress " + packed + " " + decoded).status, 0);
+    const auto back = itk::ReadImage<ImageType>(decoded);
+    const auto n = original->GetBufferedRegion().GetNumberOfPixels();
+    int        worst = 0;
+    for (std::size_t i = 0; i < n; ++i)
+      worst = std::max(worst, std::abs(int(back->GetBufferPointer()[i]) - int(original->GetBufferPointer()[i])));
+    EXPECT_LE(worst, bound);
+  }
+  // A lossy file states no bound.
+  ASSERT_EQ(RunDcv("compress " + phantom + " " + Path("lossy.dcv") + " --bpv 0.5").status, 0);
+  EXPECT_NE(RunDcv("info " + Path("lossy.dcv")).output.find("maximum error: none"), std::string::npos);
+}
+
+TEST_F(CommandLine, BadMaximumErrorsAreUsageErrors)
+{
+  const std::string phantom = Path("phantom.nrrd");
+  ASSERT_EQ(RunDcv("phantom " + phantom + " --size 16").status, 0);
+  for (const std::string flags : { "--max-error -1",
+                                   "--max-error nan",
+                                   "--max-error inf",
+                                   "--max-error x",
+                                   "--max-error 1 --bpv 0.1",
+                                   "--max-error 1 --psnr 30",
+                                   "--max-error 0 -n 50" })
+  {
+    const Result r = RunDcv("compress " + phantom + " " + Path("x.dcv") + " " + flags);
+    EXPECT_EQ(r.status, 2) << flags << ": " << r.output;
+    EXPECT_NE(r.output.find("max-error"), std::string::npos) << r.output;
+    EXPECT_FALSE(fs::exists(Path("x.dcv")));
+  }
+}

@@ -381,6 +381,39 @@ TEST_F(DicomInput, RoundTripsToAValidDerivedSeriesOfTheSameStudy)
   EXPECT_EQ(std::distance(fs::directory_iterator(out), fs::directory_iterator()), 28);
 }
 
+// Lossless files give a series not flagged lossy, identical in its values; near-lossless ones are flagged and
+// state their bound; both pass dciodvfy.
+TEST_F(DicomInput, BoundedFilesSayWhetherTheyAreLossless)
+{
+  const auto original = ReadSeries(m_Series);
+  const auto n = original->GetBufferedRegion().GetNumberOfPixels();
+  for (const int bound : { 0, 5 })
+  {
+    const std::string packed = Path("bounded" + std::to_string(bound) + ".dcv");
+    const Result      c = RunDcv("compress " + m_Series + " " + packed + " --max-error " + std::to_string(bound));
+    ASSERT_EQ(c.status, 0) << c.output;
+    const std::string out = Path("bounded" + std::to_string(bound));
+    const Result      d = RunDcv("decompress " + packed + " " + out + " --dicom");
+    ASSERT_EQ(d.status, 0) << d.output;
+    std::size_t files = 0;
+    if (HaveDciodvfy())
+      EXPECT_EQ(DciodvfyErrors(out, files), "");
+    DcmFileFormat returned;
+    ASSERT_TRUE(returned.loadFile((out + "/IM000001.dcm").c_str()).good());
+    OFString lossy, description;
+    returned.getDataset()->findAndGetOFString(DCM_LossyImageCompression, lossy);
+    returned.getDataset()->findAndGetOFString(DCM_DerivationDescription, description);
+    EXPECT_EQ(std::string(lossy.c_str()), bound == 0 ? "00" : "01");
+    const std::string stated = bound == 0 ? "lossless" : "near-lossless, every value within 5";
+    EXPECT_NE(std::string(description.c_str()).find(stated), std::string::npos) << description;
+    const auto back = ReadSeries(out);
+    double     worst = 0.0;
+    for (std::size_t i = 0; i < n; ++i)
+      worst = std::max(worst, std::abs(double(back->GetBufferPointer()[i]) - double(original->GetBufferPointer()[i])));
+    EXPECT_LE(worst, double(bound));
+  }
+}
+
 TEST(DicomOutput, AVolumeNotFromDicomGetsAPlaceholderContext)
 {
   const dcv::test::TemporaryDirectory directory;

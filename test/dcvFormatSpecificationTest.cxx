@@ -18,6 +18,7 @@
 // docs/format.md against the code: scripts/dcv_reference_decoder.py, a decoder written from the document
 // alone, must read every file the C++ encoder writes into exactly what the C++ decoder gives (header fields,
 // points in decoding order, values given the neighbours), and refuse the damaged ones.
+#include "dcvBoundedLayer.h"
 #include "dcvCodec.h"
 #include "dcvEncoder.h"
 #include "dcvResidualLayer.h"
@@ -27,10 +28,12 @@
 #include "dcvPhantom.h"
 #include "dcvRefinementEngine.h"
 #include "dcvTestUtilities.h"
+#include "itkDCVEncoder.h"
 
 #include <cmath>
 #include <cstdio>
 #include <cstdlib>
+#include <cstring>
 #include <fstream>
 #include <map>
 #include <random>
@@ -301,19 +304,27 @@ protected:
     {
       std::vector<uint8_t> compact;
       const int            form = (h.constantSpline ? 1 : 0) | (h.residualStep == 1.0 ? 2 : 0) |
-                       (!h.videoLayer && CompactLayer(h.residualLayer, h.size, compact) ? 4 : 0) |
-                       (h.videoLayer ? 8 : 0) | (h.videoLayer && h.videoCodec == VideoCodec::AV1 ? 16 : 0);
+                       (!h.videoLayer && !h.boundedLayer && CompactLayer(h.residualLayer, h.size, compact) ? 4 : 0) |
+                       (h.videoLayer ? 8 : 0) | (h.videoLayer && h.videoCodec == VideoCodec::AV1 ? 16 : 0) |
+                       (h.boundedLayer ? 32 : 0);
       EXPECT_EQ(field("form"), Tokens{ std::to_string(form) });
       EXPECT_EQ(numbers(field("residual_step")), std::vector<double>{ h.residualStep });
       EXPECT_EQ(field("residual_levels"), Tokens{ std::to_string(h.residualLevels) });
       EXPECT_EQ(field("residual_bytes"), Tokens{ std::to_string(h.residualLayer.size()) });
-      const auto           samples = h.videoLayer ? DecodeVideoLayer(h.videoCodec, h.residualLayer, h.size, path)
-                                                  : DecodeResidualLayer(h.residualLayer, h.size, path, h.residualLevels);
-      std::vector<uint8_t> le;
+      const ResidualSamples samples = h.boundedLayer ? DecodeBoundedLayer(h.residualLayer, h.size, path)
+                                      : h.videoLayer
+                                        ? DecodeVideoLayer(h.videoCodec, h.residualLayer, h.size, path)
+                                        : DecodeResidualLayer(h.residualLayer, h.size, path, h.residualLevels);
+      std::vector<uint8_t>  le;
       for (int32_t v : samples)
         for (int b = 0; b < 4; ++b)
           le.push_back(uint8_t(uint32_t(v) >> (8 * b)));
       EXPECT_EQ(field("residual_crc"), Tokens{ std::to_string(crc32(0L, le.data(), uInt(le.size()))) });
+      if (h.boundedLayer) // the bound the layer states
+        EXPECT_EQ(numbers(field("maximum_error")),
+                  std::vector<double>{ ReadBoundedLayerHeader(h.residualLayer, h.size, path).maximumError });
+      else
+        EXPECT_EQ(r.fields.count("maximum_error"), 0u);
     }
     std::vector<std::string> metadata;
     for (const auto & kv : h.metadata)
@@ -587,6 +598,90 @@ TEST_F(FormatSpecification, VideoLayer)
   const std::string path = Path("encoded-video.dcv");
   WriteFileAtomically(path, r.bytes);
   ExpectAgreement(path);
+}
+
+// The bounded-error layer (form bit 5): the reference decoder gives the library's samples and the bound the
+// layer states, lossless and near-lossless, on integers and floats, and refuses what the library refuses.
+TEST_F(FormatSpecification, BoundedErrorLayer)
+{
+  // Volumes of 10,000 to 12,000 voxels: the reference decoder takes a fraction of a second on each.
+  auto encode = [this](auto image, double bound, const std::string & name) {
+    EncoderOptions options;
+    options.maximumError = bound;
+    const EncoderResult r = itk::DCVEncode(image.GetPointer(), options);
+    EXPECT_TRUE(r.header.boundedLayer) << name;
+    EXPECT_TRUE(r.header.constantSpline) << name;
+    const std::string path = Path(name);
+    WriteFileAtomically(path, r.bytes);
+    return path;
+  };
+  // A phantom (uint8), lossless (h = 1: form bit 1) on an oblique grid (the one-byte direction code), then
+  // within 2 (h = 5).
+  const GridSize phantom{ 28, 22, 18 };
+  ExpectAgreement(encode(test::PhantomImage(phantom, true), 0.0, "phantom-lossless.dcv"));
+  ExpectAgreement(encode(test::PhantomImage(phantom), 2.0, "phantom-2.dcv"));
+
+  // int16 noise over a wide range (large residuals, folded), lossless and within 3.
+  using Int16Image = itk::Image<int16_t, 3>;
+  auto noise = Int16Image::New();
+  noise->SetRegions(Int16Image::SizeType{ { 26, 22, 18 } });
+  noise->Allocate();
+  std::mt19937                       random(5);
+  std::uniform_int_distribution<int> wide(-30000, 32000);
+  for (std::size_t i = 0; i < noise->GetPixelContainer()->Size(); ++i)
+    noise->GetBufferPointer()[i] = int16_t(i % 7 == 0 ? wide(random) : wide(random) / 64);
+  ExpectAgreement(encode(noise, 0.0, "int16-lossless.dcv"));
+  ExpectAgreement(encode(noise, 3.0, "int16-3.dcv"));
+
+  // float32: a smooth field with noise, within 0.5 (h just under 1, stored).
+  using FloatImage = itk::Image<float, 3>;
+  auto field = FloatImage::New();
+  field->SetRegions(FloatImage::SizeType{ { 28, 21, 18 } });
+  field->Allocate();
+  std::uniform_real_distribution<double> jitter(-2.0, 2.0);
+  float *                                f = field->GetBufferPointer();
+  for (int32_t z = 0; z < 18; ++z)
+    for (int32_t y = 0; y < 21; ++y)
+      for (int32_t x = 0; x < 28; ++x)
+        *f++ = float(300.0 * std::sin(0.2 * x + 0.3 * z) * std::cos(0.15 * y) - 17.25 + jitter(random));
+  const std::string floats = encode(field, 0.5, "float-0.5.dcv");
+  ExpectAgreement(floats);
+
+  // Damaged: the library and the reference decoder refuse the same files, by the same rule.
+  const Decoded d = DecodeWithTheLibrary(floats);
+  auto expectRefused = [&](const std::vector<uint8_t> & bytes, const std::string & name, const std::string & phrase) {
+    const std::string path = Path(name);
+    WriteFileAtomically(path, bytes);
+    EXPECT_THROW(Decode(ReadCompressedFile(path)), FormatError) << name;
+    const Result r = RunReference(path);
+    EXPECT_EQ(r.status, 1) << name << ": " << r.errors;
+    EXPECT_NE(r.errors.find(path + ": "), std::string::npos) << r.errors;
+    EXPECT_NE(r.errors.find(phrase), std::string::npos) << "expected '" << phrase << "' in: " << r.errors;
+    EXPECT_TRUE(r.output.empty()) << r.output;
+  };
+  FileHeader h = d.header;
+  h.residualLayer.push_back(0);
+  expectRefused(SerializeFile(h, {}), "trailing.dcv", "1 bytes follow the bounded-error layer");
+  h = d.header;
+  h.residualLayer.erase(h.residualLayer.begin() + 24); // the slab's length no longer fits
+  expectRefused(SerializeFile(h, {}), "cut.dcv", "the bounded-error layer ends inside slab 1 of 1");
+  h = d.header;
+  h.residualLayer[16] ^= 1; // S, the slices of a slab
+  expectRefused(SerializeFile(h, {}), "slab.dcv", "damaged bounded-error layer (slabs of");
+  h = d.header;
+  const double negative = -1.0;
+  std::memcpy(h.residualLayer.data(), &negative, 8); // E
+  expectRefused(SerializeFile(h, {}), "bound.dcv", "its bound is not a finite non-negative number");
+  // The form byte with form bit 2 (compact) too, its CRC-32 made again: a rule of the container.
+  std::vector<uint8_t> bytes = d.bytes;
+  const uint8_t        flags = bytes[6];
+  const std::size_t    form = 62 + ((flags & 1) ? ((flags & 64) ? 1 : 72) : 0) + ((flags & 4) ? 3 : 0);
+  ASSERT_EQ(bytes[form] & 32, 32);
+  bytes[form] |= 4;
+  const uint32_t crc = uint32_t(crc32(0L, bytes.data(), uInt(bytes.size() - 4)));
+  for (int b = 0; b < 4; ++b)
+    bytes[bytes.size() - 4 + b] = uint8_t(crc >> (8 * b));
+  expectRefused(bytes, "compact.dcv", "bounded-error layer (form bit 5)");
 }
 
 TEST_F(FormatSpecification, DamagedFilesAreRefused)

@@ -30,7 +30,10 @@ main(int argc, char * argv[])
     const std::string   input = arguments.String("inputVolume");
     const std::string   output = arguments.String("outputFile");
     dcv::EncoderOptions options = dcv::slicer::EncoderOptionsFrom(arguments);
-    const VolumeInput   volume = OpenVolume(input);
+    options.maximumError = arguments.Double("maxError");
+    if (options.maximumError >= 0.0) // the bound replaces the module's other targets
+      options.bitsPerVoxel = options.psnr = 0.0;
+    const VolumeInput volume = OpenVolume(input);
     CheckOutput(output, true, true);
 
     dcv::slicer::SlicerProgress progress("DCV Compress", "Compressing " + input + " into " + output);

@@ -16,6 +16,7 @@
  *
  *=========================================================================*/
 #include "dcvCodec.h"
+#include "dcvBoundedLayer.h"
 #include "dcvResidualLayer.h"
 #include "dcvVideoLayer.h"
 #include "dcvArithmeticCoder.h"
@@ -277,24 +278,27 @@ DecodePayload(const std::vector<uint8_t> & payload, const GridSize & grid, uint3
 }
 
 Approximation
+ConstantSpline(const GridSize & grid, const GridScale & scale, double value)
+{
+  Approximation a;
+  a.grid = grid;
+  a.scale = scale;
+  for (int32_t z : { 0, grid.z - 1 })
+    for (int32_t y : { 0, grid.y - 1 })
+      for (int32_t x : { 0, grid.x - 1 })
+        a.points.push_back({ x, y, z });
+  a.values.assign(8, value);
+  a.tetrahedra = Tetrahedralize(a.points, a.scale);
+  return a;
+}
+
+Approximation
 DecodeMesh(const CompressedFile & file, const DecodeLimits & limits)
 {
   const FileHeader & h = file.header;
   CheckDecodingMemory(h, file.name, DecodeOutput::Mesh, limits);
   if (h.constantSpline)
-  {
-    // No point is coded: the spline is q0 everywhere, the 8 corners at that value.
-    Approximation a;
-    a.grid = h.size;
-    a.scale = h.scale;
-    for (int32_t z : { 0, h.size.z - 1 })
-      for (int32_t y : { 0, h.size.y - 1 })
-        for (int32_t x : { 0, h.size.x - 1 })
-          a.points.push_back({ x, y, z });
-    a.values.assign(8, h.quantizationOrigin);
-    a.tetrahedra = Tetrahedralize(a.points, a.scale);
-    return a;
-  }
+    return ConstantSpline(h.size, h.scale, h.quantizationOrigin); // no point is coded
   return DecodePayload(
     file.payload, h.size, h.numberOfPoints, h.quantizationOrigin, h.quantizationStep, file.name, h.scale);
 }
@@ -308,8 +312,9 @@ Decode(const CompressedFile & file, const DecodeLimits & limits)
   if (h.residualStep > 0.0)
   {
     a.residual = { h.residualStep,
-                   h.videoLayer ? DecodeVideoLayer(h.videoCodec, h.residualLayer, h.size, file.name)
-                                : DecodeResidualLayer(h.residualLayer, h.size, file.name, h.residualLevels) };
+                   h.boundedLayer ? DecodeBoundedLayer(h.residualLayer, h.size, file.name)
+                   : h.videoLayer ? DecodeVideoLayer(h.videoCodec, h.residualLayer, h.size, file.name)
+                                  : DecodeResidualLayer(h.residualLayer, h.size, file.name, h.residualLevels) };
   }
   return a;
 }

@@ -16,6 +16,7 @@
  *
  *=========================================================================*/
 #include "dcvEncoder.h"
+#include "dcvBoundedEncoder.h"
 #include "dcvCodec.h"
 #include "dcvParallel.h"
 #include "dcvRateControl.h"
@@ -90,6 +91,11 @@ CheckOptions(const EncoderOptions & o)
     refuse("PSNR (--psnr)", "positive, or 0: off", o.psnr);
   if (o.bitsPerVoxel > 0.0 && o.psnr > 0.0)
     throw std::invalid_argument("give BitsPerVoxel (--bpv) or PSNR (--psnr), not both");
+  if (std::isnan(o.maximumError) || std::isinf(o.maximumError))
+    refuse("MaximumError (--max-error)", "a finite number (negative: off)", o.maximumError);
+  if (o.maximumError >= 0.0 && (o.bitsPerVoxel > 0.0 || o.psnr > 0.0))
+    throw std::invalid_argument(std::string("give MaximumError (--max-error) or ") +
+                                (o.bitsPerVoxel > 0.0 ? "BitsPerVoxel (--bpv)" : "PSNR (--psnr)") + ", not both");
   if (o.numberOfPoints < 8)
     refuse("NumberOfPoints (--points)", "at least 8 (the corners of the volume)", double(o.numberOfPoints));
   if (!(o.quantizationStep >= 0.0) || !std::isfinite(o.quantizationStep))
@@ -113,6 +119,8 @@ uint64_t
 EncodingMemory(const GridSize & grid, const EncoderOptions & o)
 {
   const double voxels = double(grid.NumberOfVoxels());
+  if (o.maximumError >= 0.0) // the voxels as doubles, the layer's samples, the coded bytes: 13 to 14 a voxel
+    return uint64_t(std::min(voxels * EncodingBytesPerVoxel, 1.8e19));
   const bool   residual = o.bitsPerVoxel > 0.0 && o.residualLayer;
   const double points = o.bitsPerVoxel > 0.0 ? std::max(8.0, std::min(voxels, o.bitsPerVoxel * voxels / 8.0))
                                              : std::min(voxels, double(o.numberOfPoints));
@@ -163,7 +171,7 @@ CheckOptions(const EncoderOptions & o, const EncoderInput & input)
                                 " bytes for " + std::to_string(voxels) + " voxels; a .dcv payload holds at most " +
                                 std::to_string(MaximumPayloadBytes) + " (a uint32 length)");
   }
-  if (o.bitsPerVoxel == 0.0 && o.psnr == 0.0 && o.numberOfPoints > voxels)
+  if (o.bitsPerVoxel == 0.0 && o.psnr == 0.0 && o.maximumError < 0.0 && o.numberOfPoints > voxels)
   {
     throw std::invalid_argument("NumberOfPoints (--points) must be at most the number of voxels, " +
                                 std::to_string(voxels) + ", got " + std::to_string(o.numberOfPoints));
@@ -270,16 +278,7 @@ namespace
 Approximation
 Corners(const GridSize & grid, const GridScale & scale, double value)
 {
-  Approximation a;
-  a.grid = grid;
-  a.scale = scale;
-  for (int32_t z : { 0, grid.z - 1 })
-    for (int32_t y : { 0, grid.y - 1 })
-      for (int32_t x : { 0, grid.x - 1 })
-        a.points.push_back({ x, y, z });
-  a.values.assign(8, value);
-  a.tetrahedra = Tetrahedralize(a.points, a.scale);
-  return a;
+  return ConstantSpline(grid, scale, value);
 }
 
 /** Slices this many times as thick as their pixels are wide or more: the corners' layer tries one
@@ -759,6 +758,9 @@ EncodeFile(const EncoderInput & input, const EncoderOptions & options)
 EncoderResult
 Approximate(const EncoderInput & input, const EncoderOptions & options)
 {
+  if (options.maximumError >= 0.0)
+    throw std::invalid_argument("MaximumError (--max-error) makes a file without points: encode it, there is "
+                                "nothing to approximate");
   return WithThreads(options.threads, [&] {
     std::vector<uint8_t> payload;
     return Run(input, options, false, payload);
@@ -768,6 +770,8 @@ Approximate(const EncoderInput & input, const EncoderOptions & options)
 EncoderResult
 Encode(const EncoderInput & input, const EncoderOptions & options)
 {
+  if (options.maximumError >= 0.0)
+    return WithThreads(options.threads, [&] { return EncodeBounded(input, options); });
   return WithThreads(options.threads, [&] { return EncodeFile(input, options); });
 }
 

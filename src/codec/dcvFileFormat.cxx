@@ -47,6 +47,7 @@ constexpr uint8_t FormUnitStep = 2;       // the residual step is 1 and is not s
 constexpr uint8_t FormCompact = 4;        // the residual layer is stored compact (dcvResidualLayer.h, CompactLayer)
 constexpr uint8_t FormVideo = 8;          // the residual layer is a video stream, HEVC (dcvVideoLayer.h)
 constexpr uint8_t FormAV1 = 16;           // ... AV1 (with FormVideo)
+constexpr uint8_t FormBounded = 32;       // the residual layer is a bounded-error layer (dcvBoundedLayer.h)
 
 /** The permutations of the axes a direction code names: row r of the matrix is +-1 at column
  * Permutations[code & 7][r]. */
@@ -292,12 +293,18 @@ SerializeFile(const FileHeader & h, const std::vector<uint8_t> & payload)
   {
     throw std::invalid_argument("a .dcv video layer needs a constant spline and no inter-slice wavelet");
   }
+  if (h.boundedLayer && (!residual || !h.constantSpline || h.residualLevels > 0 || h.videoLayer))
+  {
+    throw std::invalid_argument("a .dcv bounded-error layer needs a constant spline, no inter-slice wavelet and no "
+                                "video layer");
+  }
   // Every residual layer comes with a form byte: the layer's fields as short as they can be.
   std::vector<uint8_t> compact;
-  const bool           compacted = residual && !h.videoLayer && CompactLayer(h.residualLayer, h.size, compact);
-  const uint8_t form = uint8_t((h.constantSpline ? FormConstant : 0) | (h.residualStep == 1.0 ? FormUnitStep : 0) |
-                               (compacted ? FormCompact : 0) | (h.videoLayer ? FormVideo : 0) |
-                               (h.videoLayer && h.videoCodec == VideoCodec::AV1 ? FormAV1 : 0));
+  const bool compacted = residual && !h.videoLayer && !h.boundedLayer && CompactLayer(h.residualLayer, h.size, compact);
+  const uint8_t form =
+    uint8_t((h.constantSpline ? FormConstant : 0) | (h.residualStep == 1.0 ? FormUnitStep : 0) |
+            (compacted ? FormCompact : 0) | (h.videoLayer ? FormVideo : 0) |
+            (h.videoLayer && h.videoCodec == VideoCodec::AV1 ? FormAV1 : 0) | (h.boundedLayer ? FormBounded : 0));
   const std::vector<uint8_t> & layer = compacted ? compact : h.residualLayer;
   w.Bytes(Magic, 4);
   w.U8(FileHeader::Version);
@@ -474,7 +481,7 @@ ParseFile(const std::vector<uint8_t> & bytes, const std::string & name, FileHead
       throw FormatError(name + ": invalid voxel spacing");
   }
   const uint8_t form = (flags & FlagForm) ? r.U8("header") : 0;
-  if (form & ~(FormConstant | FormUnitStep | FormCompact | FormVideo | FormAV1))
+  if (form & ~(FormConstant | FormUnitStep | FormCompact | FormVideo | FormAV1 | FormBounded))
   {
     throw FormatError(name + ": unknown form bits " + std::to_string(form));
   }
@@ -489,6 +496,13 @@ ParseFile(const std::vector<uint8_t> & bytes, const std::string & name, FileHead
     throw FormatError(name + ": form bit 4 (AV1) without a video layer (form bit 3)");
   }
   h.videoLayer = (form & FormVideo) != 0;
+  if ((form & FormBounded) &&
+      (!(form & FormConstant) || (form & (FormCompact | FormVideo)) || (flags & FlagInterSlice)))
+  {
+    throw FormatError(name + ": a bounded-error layer (form bit 5) needs a constant spline (form bit 0), no compact "
+                             "form, no video layer and no inter-slice wavelet");
+  }
+  h.boundedLayer = (form & FormBounded) != 0;
   h.videoCodec = (form & FormAV1) ? VideoCodec::AV1 : VideoCodec::HEVC;
   h.quantizationOrigin = r.F64("header");
   if (h.constantSpline)

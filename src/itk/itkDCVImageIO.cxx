@@ -44,6 +44,7 @@ DCVImageIO::SetBitsPerVoxel(double bitsPerVoxel)
 {
   m_Options.bitsPerVoxel = bitsPerVoxel;
   m_Options.psnr = 0.0;
+  m_Options.maximumError = -1.0;
   this->Modified();
 }
 
@@ -52,6 +53,16 @@ DCVImageIO::SetPSNR(double psnr)
 {
   m_Options.psnr = psnr;
   m_Options.bitsPerVoxel = 0.0;
+  m_Options.maximumError = -1.0;
+  this->Modified();
+}
+
+void
+DCVImageIO::SetMaximumError(double maximumError)
+{
+  m_Options.maximumError = maximumError;
+  m_Options.bitsPerVoxel = 0.0;
+  m_Options.psnr = 0.0;
   this->Modified();
 }
 
@@ -61,6 +72,7 @@ DCVImageIO::SetNumberOfPoints(SizeValueType numberOfPoints)
   m_Options.numberOfPoints = numberOfPoints;
   m_Options.bitsPerVoxel = 0.0;
   m_Options.psnr = 0.0;
+  m_Options.maximumError = -1.0;
   this->Modified();
 }
 
@@ -187,6 +199,7 @@ DCVImageIO::PrintSelf(std::ostream & os, Indent indent) const
   Superclass::PrintSelf(os, indent);
   os << indent << "BitsPerVoxel: " << m_Options.bitsPerVoxel << std::endl;
   os << indent << "PSNR: " << m_Options.psnr << std::endl;
+  os << indent << "MaximumError: " << m_Options.maximumError << std::endl;
   os << indent << "NumberOfPoints: " << m_Options.numberOfPoints << std::endl;
   os << indent << "Mode: " << m_Options.mode << std::endl;
   os << indent << "QuantizationStep: " << m_Options.quantizationStep << std::endl;

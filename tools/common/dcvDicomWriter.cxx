@@ -16,6 +16,7 @@
  *
  *=========================================================================*/
 #include "dcvDicomWriter.h"
+#include "dcvBoundedLayer.h"
 #include "dcvDicomHeader.h"
 #include "dcvTools.h"
 #include "dcvVersion.h"
@@ -252,7 +253,7 @@ PutPixelModule(DcmDataset & ds, const PixelEncoding & enc, int32_t columns, int3
 
 void
 Derive(DcmDataset & ds, const std::string & series, const std::string & now, const std::string & derivation,
-       double ratio, const PixelEncoding & enc, int32_t columns, int32_t rows, const std::string & software)
+       double ratio, bool lossy, const PixelEncoding & enc, int32_t columns, int32_t rows, const std::string & software)
 {
   const std::string sopClass = Get(ds, DCM_SOPClassUID);
   const std::string sopInstance = Get(ds, DCM_SOPInstanceUID);
@@ -263,9 +264,15 @@ Derive(DcmDataset & ds, const std::string & series, const std::string & now, con
   type[0] = "DERIVED";
   type[1] = "SECONDARY";
   Put(ds, DCM_ImageType, Joined(type));
-  // An earlier lossy compression keeps its values; this one adds its own (PS3.3 C.7.6.1.1.5).
+  // An earlier lossy compression keeps its values; this one adds its own (PS3.3 C.7.6.1.1.5). A lossless
+  // file adds nothing: the pixels are the original's, lossy only where the original already was.
   std::string ratioText = Decimal(ratio), method = "DCV";
-  if (Get(ds, DCM_LossyImageCompression) == "01")
+  if (!lossy)
+  {
+    if (Get(ds, DCM_LossyImageCompression).empty())
+      Put(ds, DCM_LossyImageCompression, "00");
+  }
+  else if (Get(ds, DCM_LossyImageCompression) == "01")
   {
     const std::string earlierRatio = Get(ds, DCM_LossyImageCompressionRatio);
     const std::string earlierMethod = Get(ds, DCM_LossyImageCompressionMethod);
@@ -275,11 +282,15 @@ Derive(DcmDataset & ds, const std::string & series, const std::string & now, con
       method = earlierMethod + "\\" + method;
     }
   }
-  Put(ds, DCM_LossyImageCompression, "01");
-  Put(ds, DCM_LossyImageCompressionRatio, ratioText);
-  Put(ds, DCM_LossyImageCompressionMethod, method);
+  if (lossy)
+  {
+    Put(ds, DCM_LossyImageCompression, "01");
+    Put(ds, DCM_LossyImageCompressionRatio, ratioText);
+    Put(ds, DCM_LossyImageCompressionMethod, method);
+  }
   Put(ds, DCM_DerivationDescription, derivation);
-  PutCodeItem(ds, DCM_DerivationCodeSequence, "113040", "DCM", "Lossy Compression");
+  if (lossy)
+    PutCodeItem(ds, DCM_DerivationCodeSequence, "113040", "DCM", "Lossy Compression");
   ds.findAndDeleteElement(DCM_SourceImageSequence);
   DcmItem * source = nullptr;
   if (ds.findOrCreateSequenceItem(DCM_SourceImageSequence, source, -2).bad() || source == nullptr)
@@ -288,14 +299,21 @@ Derive(DcmDataset & ds, const std::string & series, const std::string & now, con
   }
   Put(*source, DCM_ReferencedSOPClassUID, sopClass);
   Put(*source, DCM_ReferencedSOPInstanceUID, sopInstance);
-  PutCodeItem(*source, DCM_PurposeOfReferenceCodeSequence, "121320", "DCM", "Uncompressed predecessor");
+  if (lossy)
+    PutCodeItem(*source, DCM_PurposeOfReferenceCodeSequence, "121320", "DCM", "Uncompressed predecessor");
+  else
+    PutCodeItem(
+      *source, DCM_PurposeOfReferenceCodeSequence, "121322", "DCM", "Source image for image processing operation");
   Put(ds, DCM_InstanceCreationDate, now.substr(0, 8));
   Put(ds, DCM_InstanceCreationTime, now.substr(8));
   const std::string number = Get(ds, DCM_SeriesNumber);
   Put(ds, DCM_SeriesNumber, std::to_string((number.empty() ? 0 : std::stoi(number)) + 9000));
   Put(ds,
       DCM_SeriesDescription,
-      WithSuffix(Get(ds, DCM_SeriesDescription), " dcv lossy", 64, Get(ds, DCM_SpecificCharacterSet) == "ISO_IR 192"));
+      WithSuffix(Get(ds, DCM_SeriesDescription),
+                 lossy ? " dcv lossy" : " dcv lossless",
+                 64,
+                 Get(ds, DCM_SpecificCharacterSet) == "ISO_IR 192"));
   const std::string versions = Get(ds, DCM_SoftwareVersions);
   Put(ds, DCM_SoftwareVersions, versions.empty() ? software : versions + "\\" + software);
   // The pixel module as the decoded values are stored; values in stored units of the original pixels go.
@@ -406,8 +424,18 @@ WriteDicomSeries(const FileHeader & header, std::size_t compressedBytes,
     std::strftime(date, sizeof(date), "%Y%m%d%H%M%S", std::gmtime(&t));
     return std::string(date);
   }();
-  std::string derivation = "Decoded from a DelaunayCompression .dcv file: lossy, a linear spline over an adaptive "
-                           "Delaunay tetrahedralization";
+  // A bounded-error file states its bound: 0 is lossless (not flagged lossy), above 0 near-lossless.
+  const double bound = header.boundedLayer
+                         ? ReadBoundedLayerHeader(header.residualLayer, header.size, "the .dcv file").maximumError
+                         : -1.0;
+  const bool   lossy = bound != 0.0;
+  std::string  derivation = "Decoded from a DelaunayCompression .dcv file: lossy, a linear spline over an adaptive "
+                            "Delaunay tetrahedralization";
+  if (bound == 0.0)
+    derivation = "Decoded from a DelaunayCompression .dcv file: lossless, every value the original's";
+  else if (bound > 0.0)
+    derivation = "Decoded from a DelaunayCompression .dcv file: near-lossless, every value within " + Decimal(bound) +
+                 " of the original's";
   for (const auto & [key, value] : header.metadata)
   {
     if (key == "Resampled")
@@ -435,7 +463,7 @@ WriteDicomSeries(const FileHeader & header, std::size_t compressedBytes,
       DcmDataset &  ds = *file.getDataset();
       if (headers)
       {
-        Derive(ds, series, now, derivation, ratio, enc, nx, ny, std::string("dcv ") + ModuleVersion);
+        Derive(ds, series, now, derivation, ratio, lossy, enc, nx, ny, std::string("dcv ") + ModuleVersion);
         CompleteType2(ds, z);
       }
       else
@@ -463,7 +491,9 @@ WriteDicomSeries(const FileHeader & header, std::size_t compressedBytes,
         if (!ct || get("BodyPartExamined").empty())
           Put(ds, DCM_Laterality, ""); // type 2C: a paired body part (or one not known) needs it
         Put(ds, DCM_SeriesNumber, std::to_string(std::stoi(get("SeriesNumber", "0")) + 9000));
-        Put(ds, DCM_SeriesDescription, (get("SeriesDescription") + " dcv lossy").substr(0, 64));
+        Put(ds,
+            DCM_SeriesDescription,
+            (get("SeriesDescription") + (lossy ? " dcv lossy" : " dcv lossless")).substr(0, 64));
         Put(ds, DCM_Manufacturer, get("Manufacturer"));
         if (!get("ManufacturerModelName").empty())
           Put(ds, DCM_ManufacturerModelName, get("ManufacturerModelName"));
@@ -473,9 +503,12 @@ WriteDicomSeries(const FileHeader & header, std::size_t compressedBytes,
         Put(ds, DCM_InstanceNumber, std::to_string(z + 1));
         Put(ds, DCM_ImageType, ct ? "DERIVED\\SECONDARY\\AXIAL" : "DERIVED\\SECONDARY");
         Put(ds, DCM_DerivationDescription, derivation);
-        Put(ds, DCM_LossyImageCompression, "01");
-        Put(ds, DCM_LossyImageCompressionRatio, Decimal(ratio));
-        Put(ds, DCM_LossyImageCompressionMethod, "DCV");
+        Put(ds, DCM_LossyImageCompression, lossy ? "01" : "00");
+        if (lossy)
+        {
+          Put(ds, DCM_LossyImageCompressionRatio, Decimal(ratio));
+          Put(ds, DCM_LossyImageCompressionMethod, "DCV");
+        }
         Put(ds, DCM_ContentDate, now.substr(0, 8));
         Put(ds, DCM_ContentTime, now.substr(8));
         if (!ct)

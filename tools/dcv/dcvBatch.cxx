@@ -329,7 +329,8 @@ const RegisterCommand batch{
       auto * shard =
         command.add_option("--shard", b->shard, "K/N: only the items whose index (in the sorted list) modulo N is K-1");
       return [b, target, shard] {
-        b->targeted = target.bpv->count() + target.psnr->count() + target.points->count() > 0;
+        b->targeted =
+          target.bpv->count() + target.psnr->count() + target.points->count() + target.maximumError->count() > 0;
         b->sharded = shard->count() > 0;
         Batch(*b);
       };

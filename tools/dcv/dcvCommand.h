@@ -149,6 +149,11 @@ CheckFiniteVoxels(const TImage * image, const std::string & input)
 std::string
 FormatPSNR(double psnr);
 
+/** The bound a file keeps, as compress and info print it: "0 (lossless)", "2 (every voxel within it of the
+ * input)", or "none" (negative: a file without a bounded-error layer). */
+std::string
+FormatMaximumError(double maximumError);
+
 /** The residual layer as compress and info print it: the bytes it takes in the file, and those of the whole
  * JPEG 2000 codestream a decoder rebuilds from them (its markers restored), or of the HEVC or AV1 stream of a video
  * layer; "none" without a layer. */
@@ -182,6 +187,7 @@ struct TargetOptions
   CLI::Option * bpv;
   CLI::Option * psnr;
   CLI::Option * points;
+  CLI::Option * maximumError;
 };
 TargetOptions
 AddTargetOptions(CLI::App & command, EncoderOptions & e);

@@ -62,7 +62,7 @@ Compress(const CompressOptions & c)
   if (!c.method.quiet)
   {
     const double voxels = double(r.header.size.NumberOfVoxels());
-    std::cout << "mode: " << ModeName(options.mode) << "\n"
+    std::cout << "mode: " << (options.maximumError >= 0.0 ? "bounded error" : ModeName(options.mode)) << "\n"
               << "bytes: " << r.bytes.size() << "\n"
               << "bpv: " << double(r.bytes.size()) * 8.0 / voxels << "\n"
               << "points: " << r.header.numberOfPoints << "\n"
@@ -75,7 +75,8 @@ Compress(const CompressOptions & c)
     }
     std::cout << "step: " << r.header.quantizationStep << "\n"
               << "scale: " << r.header.scale[0] << " " << r.header.scale[1] << " " << r.header.scale[2] << "\n"
-              << "PSNR: " << FormatPSNR(r.psnr) << "\n";
+              << "PSNR: " << FormatPSNR(r.psnr) << "\n"
+              << "maximum error: " << FormatMaximumError(r.maximumError) << "\n";
     const std::string dicomHeader = FormatDicomHeaderBytes(r.header, r.bytes.size());
     if (!dicomHeader.empty())
       std::cout << "DICOM header: " << dicomHeader << "\n";

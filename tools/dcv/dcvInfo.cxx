@@ -17,6 +17,7 @@
  *=========================================================================*/
 // dcv info: the header of a .dcv file.
 #include "dcvCommand.h"
+#include "dcvBoundedLayer.h"
 
 #include <iostream>
 
@@ -43,7 +44,11 @@ Info(const std::string & input)
   for (double d : h.direction)
     std::cout << " " << d;
   std::cout << "\n"
-            << "mode: " << (h.mode <= uint8_t(Mode::Best) ? ModeName(Mode(h.mode)) : "unknown") << "\n"
+            << "mode: "
+            << (h.mode <= uint8_t(Mode::Best)       ? ModeName(Mode(h.mode))
+                : h.mode == FileHeader::BoundedMode ? "bounded error"
+                                                    : "unknown")
+            << "\n"
             << "points: " << h.numberOfPoints << "\n"
             << "scale: " << h.scale[0] << " " << h.scale[1] << " " << h.scale[2] << "\n"
             << "quantization: " << h.quantizationOrigin << " + k * " << h.quantizationStep << "\n"
@@ -57,6 +62,10 @@ Info(const std::string & input)
       std::cout << ", inter-slice wavelet of " << h.residualLevels << " levels";
     std::cout << "\n";
   }
+  std::cout << "maximum error: "
+            << FormatMaximumError(
+                 h.boundedLayer ? ReadBoundedLayerHeader(h.residualLayer, h.size, file.name).maximumError : -1.0)
+            << "\n";
   std::cout << "memory to decode: " << FormatByteCount(DecodingMemory(h, DecodeOutput::Volume)) << " (mesh alone "
             << FormatByteCount(DecodingMemory(h, DecodeOutput::Mesh)) << ")\n";
   for (const auto & kv : h.metadata)

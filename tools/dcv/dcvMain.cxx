@@ -261,8 +261,24 @@ AddTargetOptions(CLI::App & command, EncoderOptions & e)
   t.points = command.add_option("--points,-n", e.numberOfPoints, "Number of significant points (at least 8)")
                ->check(CLI::NonNegativeNumber)
                ->capture_default_str();
-  t.bpv->excludes(t.psnr)->excludes(t.points);
-  t.psnr->excludes(t.points);
+  t.maximumError =
+    command
+      .add_option("--max-error",
+                  e.maximumError,
+                  "Bound on every voxel's error, in the volume's units (0: lossless): the smallest file with every "
+                  "decoded voxel within it of the input")
+      ->check(CLI::Validator(
+        [](const std::string & text) -> std::string {
+          double v = 0.0;
+          return CLI::detail::lexical_cast(text, v) && v >= 0.0 && std::isfinite(v)
+                   ? std::string()
+                   : "--max-error must be a finite number, 0 or more (0: lossless), got " + text;
+        },
+        "E >= 0",
+        "max-error"));
+  t.bpv->excludes(t.psnr)->excludes(t.points)->excludes(t.maximumError);
+  t.psnr->excludes(t.points)->excludes(t.maximumError);
+  t.points->excludes(t.maximumError);
   command.add_flag("!--no-residual-layer",
                    e.residualLayer,
                    "With --bpv, points only: neither a JPEG 2000 residual layer nor a video layer is tried");
@@ -284,6 +300,19 @@ AddTargetOptions(CLI::App & command, EncoderOptions & e)
 }
 
 std::string
+FormatMaximumError(double maximumError)
+{
+  if (maximumError < 0.0)
+    return "none (no bounded-error layer)";
+  if (maximumError == 0.0)
+    return "0 (lossless)";
+  std::ostringstream text;
+  text.precision(9);
+  text << maximumError << " (every voxel within it of the input)";
+  return text.str();
+}
+
+std::string
 FormatPSNR(double psnr)
 {
   std::ostringstream text;
@@ -299,6 +328,8 @@ FormatResidualLayer(const FileHeader & header)
 {
   if (header.residualLayer.empty())
     return "none";
+  if (header.boundedLayer)
+    return std::to_string(header.residualLayer.size()) + " bytes (a bounded-error layer)";
   if (header.videoLayer)
     return std::to_string(header.residualLayer.size()) +
            (header.videoCodec == VideoCodec::AV1 ? " bytes (an AV1 stream)" : " bytes (an HEVC stream)");
@@ -310,8 +341,9 @@ std::string
 FormatByteSplit(const FileHeader & header, std::size_t payloadBytes, std::size_t fileBytes)
 {
   const std::size_t  layer = header.residualLayer.empty() ? 0
-                             : header.videoLayer          ? header.residualLayer.size()
-                                                          : StoredLayerBytes(header.residualLayer, header.size);
+                             : header.videoLayer || header.boundedLayer
+                               ? header.residualLayer.size()
+                               : StoredLayerBytes(header.residualLayer, header.size);
   const std::size_t  other = fileBytes - std::min(fileBytes, payloadBytes + layer);
   const double       whole = double(std::max<std::size_t>(1, fileBytes));
   std::ostringstream text;
