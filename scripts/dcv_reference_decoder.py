@@ -661,7 +661,7 @@ def decode_bounded_slab(d, sx, sy, slices, span):
     modulus = span + 1  # M
     half = modulus // 2  # H
     cap = BOUNDED_ERROR_CAP
-    models = [SIntModel(6) for _ in range(32)]  # one per coding context bucket(a, 32)
+    models = [SIntModel(6) for _ in range(7 * 32)]  # one per coding context 32 class + bucket(a, 32)
     bias_sum = [0] * 128  # per bias context bucket(a, 16) 8 + t
     bias_count = [0] * 128
     # The error planes e_1 .. e_7 and e_f (index 7) of two slices: slice z writes the planes of parity z & 1
@@ -733,7 +733,18 @@ def decode_bounded_slab(d, sx, sy, slices, span):
                 prediction = blend + correction
                 prediction = 0 if prediction < 0 else (top if prediction > top else prediction)
                 # The residual, folded into [-H, M - H - 1]: the sum wraps back into [0, d].
-                residual = models[activity_bucket(activity, 32)].decode(d)
+                # The end class: the prediction at, near or fairly near the low (1-3) or high (4-6) end.
+                low, high = prediction, top - prediction
+                nearest, side = (low, 0) if low <= high else (high, 3)
+                if nearest == 0:
+                    end = 1 + side
+                elif 4 * nearest < activity + 4:
+                    end = 2 + side
+                elif nearest < activity + 1:
+                    end = 3 + side
+                else:
+                    end = 0
+                residual = models[32 * end + activity_bucket(activity, 32)].decode(d)
                 if residual < -half or residual >= modulus - half:
                     raise DamagedFile("damaged bounded-error layer (a sample outside its range)")
                 v = prediction + residual

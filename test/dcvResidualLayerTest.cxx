@@ -657,7 +657,9 @@ TEST(ResidualLayer, FormByteShortensTheContainer)
   const std::size_t form = 62; // no direction, no scale: the form byte follows the origin
   ASSERT_EQ(constant[6] & 128, 128);
   ASSERT_EQ(constant[form], 1 | 2 | 4);
-  refuse(constant, form, 1 | 2 | 4 | 32, "unknown form bits 39");
+  refuse(constant, form, 1 | 2 | 4 | 64, "unknown form bits 71");
+  refuse(constant, form, 1 | 2 | 4 | 32, "a bounded-error layer (form bit 5) needs");
+  refuse(constant, form, 2 | 32, "a bounded-error layer (form bit 5) needs");
   refuse(constant, form, 1 | 2 | 16, "form bit 4 (AV1) without a video layer");
   refuse(constant, form, 1 | 2 | 4 | 8, "a video layer (form bit 3) needs");
   refuse(constant, form, 2 | 8, "a video layer (form bit 3) needs");

@@ -36,6 +36,8 @@ constexpr int InSlice = 4;
 constexpr int Predictors = 7;
 /** Contexts of the residual's code (half octaves of the local activity) and of the bias correction. */
 constexpr int CodingContexts = 32;
+/** Classes of the prediction's place in the range: inside, or at, near or fairly near the low or high end. */
+constexpr int EndClasses = 7;
 constexpr int BiasContexts = 16 * 8;
 /** A bias context's counts halve when they reach this (it follows a drifting mean, as JPEG-LS's do). */
 constexpr int32_t BiasReset = 256;
@@ -105,7 +107,7 @@ CodeSlab(int32_t * samples, const GridSize & grid, int32_t slices, int64_t minim
   std::vector<Errors> errors(std::size_t(2) * plane, Errors{});
   // Models that settle slower than the points' (shift 6, not 5): 1% smaller on the dev volumes, whose
   // contexts see many thousands of residuals each.
-  std::vector<SIntModel>            models(CodingContexts, SIntModel(6));
+  std::vector<SIntModel>            models(EndClasses * CodingContexts, SIntModel(6));
   std::array<int64_t, BiasContexts> biasSum{};
   std::array<int32_t, BiasContexts> biasCount{};
   auto                              value = [&](std::size_t i) { return int64_t(samples[i]) - minimum; };
@@ -193,7 +195,16 @@ CodeSlab(int32_t * samples, const GridSize & grid, int32_t slices, int64_t minim
         if (biasCount[b] > 0)
           correction = FloorDivide(2 * biasSum[b] + biasCount[b], 2 * int64_t(biasCount[b]));
         const int64_t prediction = Clamp(blended + correction, range);
-        SIntModel &   model = models[ActivityBucket(activity, CodingContexts)];
+        // Where the prediction is at or near an end of the range (air at 0, a window's clipped values), the
+        // residual's distribution is one-sided: its own models (7 classes by side and distance).
+        const uint64_t below = uint64_t(prediction), above = uint64_t(range - prediction);
+        const uint64_t nearest = std::min(below, above);
+        const int      side = below <= above ? 0 : 3;
+        const int      end = nearest == 0                 ? 1 + side
+                             : nearest * 4 < activity + 4 ? 2 + side
+                             : nearest < activity + 1     ? 3 + side
+                                                          : 0;
+        SIntModel &    model = models[std::size_t(end) * CodingContexts + ActivityBucket(activity, CodingContexts)];
         // The residual modulo the range + 1, folded around 0 (as JPEG-LS does): it then fits 32 bits
         // whatever the samples, and the decoder's sum wraps back into the range.
         const int64_t modulus = range + 1, half = modulus / 2;
