@@ -26,12 +26,12 @@
 #include <vector>
 
 /** \file dcvBoundedLayer.h
- * The bounded-error layer (docs/format.md, "Bounded-error layer"): integer samples coded without loss by
+ * The bounded-error layer (docs/format.md, "Bounded-error layer"): integer samples coded by
  * a 3D predictive coder (a blend of in-slice and across-slice predictors weighted by their recent errors,
  * a bias correction per context, the residual coded with the project's adaptive arithmetic coder in
- * contexts of the local error). Over a constant spline and with the file's residual step h, the decoded
- * voxel is q0 + h r: lossless when h is 1 on integers, within a bound E when the encoder quantized the
- * voxels to a lattice of step h (2E + 1 on integers).
+ * contexts of the local error), each sample within `near` of the encoder's. Over a constant spline and with
+ * the file's residual step h, the decoded voxel is q0 + h r: integers with h = 1 and near = E; floats on a
+ * lattice of step h, near 4 steps.
  * \ingroup DelaunayCompression
  */
 namespace dcv
@@ -46,6 +46,7 @@ struct BoundedLayerHeader
   int32_t  minimum{ 0 };    // the smallest sample
   uint32_t range{ 0 };      // the largest sample minus the smallest
   uint32_t slabSlices{ 0 }; // slices of each independently coded slab (the last may have fewer)
+  uint32_t near{ 0 };       // every sample decodes within it of the encoder's (0: without loss)
 };
 
 /** The slices of each slab for a grid: about 4 million voxels a slab (so that the slabs of a large volume
@@ -54,10 +55,12 @@ struct BoundedLayerHeader
 DelaunayCompression_EXPORT uint32_t
 BoundedLayerSlabSlices(const GridSize & grid);
 
-/** Codes the samples (laid out as the grid, x fastest) without loss; `maximumError` is stored as the
- * bound the file states. Slabs are coded on the current task arena's threads. */
+/** Codes the samples (laid out as the grid, x fastest), each within `near` (0: without loss; JPEG-LS's
+ * near-lossless quantization of the prediction's residual), and replaces them
+ * with what the decoder will give; `maximumError` is stored as the bound the file states. Slabs are coded on
+ * the current task arena's threads. */
 DelaunayCompression_EXPORT std::vector<uint8_t>
-                           EncodeBoundedLayer(const int32_t * samples, const GridSize & grid, double maximumError);
+EncodeBoundedLayer(int32_t * samples, const GridSize & grid, uint32_t near, double maximumError);
 
 /** Reads the header of a layer; throws FormatError starting with `name` when it is damaged. */
 DelaunayCompression_EXPORT BoundedLayerHeader

@@ -607,7 +607,7 @@ def read_neighbours(path, n):
 # integers of the payload's sections above)
 # =========================================================================
 
-BOUNDED_HEADER = "diII"  # E (float64), m (int32), d (uint32), S (uint32)
+BOUNDED_HEADER = "diIII"  # E (float64), m (int32), d (uint32), S (uint32), n (uint32)
 BOUNDED_ERROR_CAP = 1 << 28  # errors are kept capped at 2^28
 BOUNDED_BIAS_RESET = 256  # a bias context's sum and count halve when the count reaches it
 
@@ -619,12 +619,12 @@ def bounded_layer_slab_slices(size):
 
 
 def read_bounded_layer(layer, size):
-    """The fields of a bounded-error layer and its slabs' streams: (E, m, d, S, [stream of each slab]).
+    """The fields of a bounded-error layer and its slabs' streams: (E, m, d, S, n, [stream of each slab]).
     Every field and every slab length is checked before anything is decoded."""
     if len(layer) < struct.calcsize("<" + BOUNDED_HEADER):
         raise DamagedFile("damaged bounded-error layer (%d bytes)" % len(layer))
     f = _Fields(layer, 0, len(layer))
-    bound, minimum, span, slab_slices = f.unpack(BOUNDED_HEADER, "bounded-error layer")
+    bound, minimum, span, slab_slices, near = f.unpack(BOUNDED_HEADER, "bounded-error layer")
     if not (math.isfinite(bound) and bound >= 0.0):
         raise DamagedFile("damaged bounded-error layer (its bound is not a finite non-negative number)")
     if minimum + span > 2 ** 31 - 1:
@@ -643,7 +643,7 @@ def read_bounded_layer(layer, size):
         streams.append(f.take(length, "bounded-error layer"))
     if f.left() != 0:
         raise DamagedFile("%d bytes follow the bounded-error layer" % f.left())
-    return bound, minimum, span, slab_slices, streams
+    return bound, minimum, span, slab_slices, near, streams
 
 
 def activity_bucket(a, buckets):
@@ -654,12 +654,13 @@ def activity_bucket(a, buckets):
     return min(buckets - 1, 2 * f + ((a >> (f - 1)) & 1))
 
 
-def decode_bounded_slab(d, sx, sy, slices, span):
+def decode_bounded_slab(d, sx, sy, slices, span, near):
     """The values v = r - m of one slab's slices (grid order, x fastest), decoded from its stream alone."""
     plane = sx * sy
     top = span  # d: values are in [0, d]
-    modulus = span + 1  # M
-    half = modulus // 2  # H
+    step = 2 * near + 1  # the residual's quantization step
+    steps = (span + 2 * near) // step + 1  # M: the residual's modulus, in steps
+    half = steps // 2  # H
     cap = BOUNDED_ERROR_CAP
     models = [SIntModel(6) for _ in range(7 * 32)]  # one per coding context 32 class + bucket(a, 32)
     bias_sum = [0] * 128  # per bias context bucket(a, 16) 8 + t
@@ -744,14 +745,17 @@ def decode_bounded_slab(d, sx, sy, slices, span):
                     end = 3 + side
                 else:
                     end = 0
-                residual = models[32 * end + activity_bucket(activity, 32)].decode(d)
-                if residual < -half or residual >= modulus - half:
+                # The residual in steps of 2 n + 1, folded into [-H, M - H - 1]: the sum wraps back.
+                q = models[32 * end + activity_bucket(activity, 32)].decode(d)
+                if q < -half or q >= steps - half:
                     raise DamagedFile("damaged bounded-error layer (a sample outside its range)")
+                residual = q * step
                 v = prediction + residual
-                if v < 0:
-                    v += modulus
-                elif v > top:
-                    v -= modulus
+                if v < -near:
+                    v += steps * step
+                elif v > top + near:
+                    v -= steps * step
+                v = 0 if v < 0 else (top if v > top else v)
                 values[base + j] = v
                 bias_sum[b] += residual
                 c += 1
@@ -773,12 +777,12 @@ def decode_bounded_layer(h):
     """Section "Bounded-error layer": the samples r in grid order (x fastest), each slab decoded alone, each
     stream read to its last byte and never past it."""
     sx, sy, sz = h["size"]
-    _, minimum, span, slab_slices, streams = read_bounded_layer(h["residual_layer"], h["size"])
+    _, minimum, span, slab_slices, near, streams = read_bounded_layer(h["residual_layer"], h["size"])
     samples = []
     for s, stream in enumerate(streams):
         d = ArithmeticDecoder(stream)
         slices = min(slab_slices, sz - s * slab_slices)
-        values = decode_bounded_slab(d, sx, sy, slices, span)
+        values = decode_bounded_slab(d, sx, sy, slices, span, near)
         if d.position != len(stream):
             raise DamagedFile("damaged bounded-error layer (%d bytes follow slab %d)"
                               % (len(stream) - d.position, s + 1))

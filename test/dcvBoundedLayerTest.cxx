@@ -56,13 +56,21 @@ RandomSamples(const GridSize & g, int64_t lo, int64_t hi, unsigned seed)
   return s;
 }
 
+/** Codes the samples within `near`: the decoder gives what the encoder left, each sample within `near`. */
 void
-ExpectLayerRoundTrip(const std::vector<int32_t> & s, const GridSize & g)
+ExpectLayerRoundTrip(const std::vector<int32_t> & s, const GridSize & g, uint32_t near = 0)
 {
-  const auto bytes = dcv::EncodeBoundedLayer(s.data(), g, 0.0);
+  auto       coded = s;
+  const auto bytes = dcv::EncodeBoundedLayer(coded.data(), g, near, double(near));
   const auto decoded = dcv::DecodeBoundedLayer(bytes, g, "'layer'");
   ASSERT_EQ(decoded.size(), s.size());
-  EXPECT_TRUE(std::equal(s.begin(), s.end(), decoded.begin()));
+  EXPECT_TRUE(std::equal(coded.begin(), coded.end(), decoded.begin()));
+  int64_t worst = 0;
+  for (std::size_t i = 0; i < s.size(); ++i)
+    worst = std::max<int64_t>(worst, std::abs(int64_t(s[i]) - int64_t(decoded[i])));
+  EXPECT_LE(worst, int64_t(near));
+  if (near == 0)
+    EXPECT_TRUE(std::equal(s.begin(), s.end(), decoded.begin()));
 }
 
 /** A random volume of pixel type T: noise over the whole type, a constant, a single bright voxel, or the
@@ -139,6 +147,18 @@ TEST(BoundedLayer, CodesEverySampleRangeWithoutLoss)
   ExpectLayerRoundTrip(RandomSamples(tiny, 0, 1, 5), tiny);
 }
 
+TEST(BoundedLayer, KeepsEverySampleWithinItsBound)
+{
+  const GridSize g{ 17, 13, 11 };
+  for (uint32_t near : { 1u, 2u, 7u, 100u, 1000000u })
+  {
+    ExpectLayerRoundTrip(RandomSamples(g, 0, 255, 11), g, near);
+    ExpectLayerRoundTrip(RandomSamples(g, -1024, 3071, 12), g, near);
+    ExpectLayerRoundTrip(
+      RandomSamples(g, std::numeric_limits<int32_t>::min() + 1, std::numeric_limits<int32_t>::max(), 13), g, near);
+  }
+}
+
 TEST(BoundedLayer, SlabsAreIndependentAndTheFileTheSameWhateverTheThreads)
 {
   // 512 x 512 slices: slabs of 16 slices, so 20 slices make two slabs, coded on two threads or one.
@@ -150,11 +170,13 @@ TEST(BoundedLayer, SlabsAreIndependentAndTheFileTheSameWhateverTheThreads)
   std::vector<uint8_t> one, two;
   {
     tbb::global_control c(tbb::global_control::max_allowed_parallelism, 1);
-    one = dcv::EncodeBoundedLayer(s.data(), g, 0.0);
+    auto                coded = s;
+    one = dcv::EncodeBoundedLayer(coded.data(), g, 0, 0.0);
   }
   {
     tbb::global_control c(tbb::global_control::max_allowed_parallelism, 2);
-    two = dcv::EncodeBoundedLayer(s.data(), g, 0.0);
+    auto                coded = s;
+    two = dcv::EncodeBoundedLayer(coded.data(), g, 0, 0.0);
   }
   EXPECT_EQ(one, two);
   const auto decoded = dcv::DecodeBoundedLayer(one, g, "'layer'");
@@ -164,8 +186,8 @@ TEST(BoundedLayer, SlabsAreIndependentAndTheFileTheSameWhateverTheThreads)
 TEST(BoundedLayer, DamagedLayersAreRefusedByName)
 {
   const GridSize g{ 24, 20, 18 };
-  const auto     s = RandomSamples(g, 0, 4095, 9);
-  const auto     bytes = dcv::EncodeBoundedLayer(s.data(), g, 0.0);
+  auto           s = RandomSamples(g, 0, 4095, 9);
+  const auto     bytes = dcv::EncodeBoundedLayer(s.data(), g, 0, 0.0);
   auto           expectRefused = [&](std::vector<uint8_t> damaged, const std::string & what) {
     try
     {
@@ -190,7 +212,7 @@ TEST(BoundedLayer, DamagedLayersAreRefusedByName)
   std::memcpy(bound.data(), &nan, 8);
   expectRefused(bound, "a NaN bound");
   // Any flipped byte of the coded slab decodes to some samples or is refused, never beyond the buffer.
-  for (std::size_t i = 24; i < bytes.size(); i += 97)
+  for (std::size_t i = 28; i < bytes.size(); i += 97)
   {
     auto flipped = bytes;
     flipped[i] ^= 0x5A;

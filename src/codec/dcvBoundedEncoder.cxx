@@ -43,15 +43,14 @@ Text(double v)
   return text;
 }
 
-/** The lattice of a bound: origin q0 (the constant spline, exact in the pixel type), step h, and the index
- * offset that keeps the indices within 32 bits. */
+/** How a bound is kept: samples x' = q0 + h r with r integers, the layer's own bound `near` in steps of h. */
 struct Lattice
 {
-  double  origin{ 0.0 };
-  double  step{ 1.0 };
-  double  bound{ 0.0 }; // what the file states: the bound the lattice keeps
-  int64_t offset{ 0 };  // index of voxel v: floor((v - minimum) / h + rounding) - offset
-  bool    integer{ true };
+  double   origin{ 0.0 }; // q0: the constant spline, a value of the pixel type
+  double   step{ 1.0 };   // h
+  double   bound{ 0.0 };  // what the file states: the bound it keeps
+  uint32_t near{ 0 };
+  bool     integer{ true };
 };
 
 template <typename T>
@@ -62,6 +61,15 @@ Spacing(double v)
   const T a = T(std::abs(v));
   return double(std::nextafter(a, std::numeric_limits<T>::infinity())) - double(a);
 }
+
+/** The spacing of the pixel type's values near the largest magnitude of the range: what rounding into the
+ * type may add, twice over. */
+double
+SpacingNear(PixelType type, double minimum, double maximum)
+{
+  const double largest = std::max(std::abs(minimum), std::abs(maximum));
+  return type == PixelType::Float32 ? Spacing<float>(largest) : Spacing<double>(largest);
+}
 } // namespace
 
 double
@@ -69,14 +77,9 @@ SmallestMaximumError(PixelType type, double minimum, double maximum)
 {
   if (IsInteger(type))
     return 0.0;
-  const double largest = std::max(std::abs(minimum), std::abs(maximum));
-  double       spacing = 0.0;
-  if (type == PixelType::Float32)
-    spacing = Spacing<float>(largest);
-  else
-    spacing = Spacing<double>(largest);
-  // h = 2E - spacing must be positive, and (max - min) / h must fit the 32-bit indices.
-  return std::max({ spacing, (maximum - minimum) / 4.0e9, std::numeric_limits<double>::min() });
+  // The lattice step (2E - spacing) / 9 must be positive and (max - min) / step fit the 32-bit indices.
+  return std::max(
+    { SpacingNear(type, minimum, maximum), 9.0 * (maximum - minimum) / 4.0e9, std::numeric_limits<double>::min() });
 }
 
 EncoderResult
@@ -106,12 +109,13 @@ EncodeBounded(const EncoderInput & input, const EncoderOptions & options)
   const double requested = options.maximumError;
   if (lattice.integer)
   {
-    // |x - x'| is a whole number: a bound of 2.5 keeps 2. Indices of step 2E + 1, each voxel decoded to
-    // the middle of its step's interval.
-    const double e = std::floor(std::min(requested, 4.0e9));
-    lattice.bound = e;
-    lattice.step = 2.0 * e + 1.0;
-    lattice.origin = minimum + e;
+    // |x - x'| is a whole number: a bound of 2.5 keeps 2. The samples are the voxels themselves (step 1),
+    // the layer quantizes each prediction's residual to steps of 2E + 1.
+    lattice.bound = std::floor(std::min(requested, 1.0e9));
+    lattice.near = uint32_t(lattice.bound);
+    lattice.step = 1.0;
+    // The samples fit int32: uint32 voxels beyond it are taken from the middle of their range.
+    lattice.origin = maximum > double(std::numeric_limits<int32_t>::max()) ? minimum + 2147483648.0 : 0.0;
   }
   else
   {
@@ -121,26 +125,35 @@ EncodeBounded(const EncoderInput & input, const EncoderOptions & options)
                                   PixelTypeName(type) + " values from " + Text(minimum) + " to " + Text(maximum) +
                                   " (the precision of the pixel type and 2^32 steps), got " + Text(requested));
     lattice.bound = requested;
-    // Rounding each decoded value into the pixel type may add half its spacing near the largest value.
-    lattice.step = 2.0 * requested - SmallestMaximumError(type, minimum, maximum);
+    // A lattice of 9 steps to 2E, 4 of them the layer's own bound: 4.5 steps within E, and a flat region
+    // off by at most half a step (a lattice of 2E alone shifted such regions by up to E). Rounding each
+    // decoded value into the pixel type may add half its spacing near the largest value.
+    lattice.near = 4;
+    lattice.step = (2.0 * requested - SpacingNear(type, minimum, maximum)) / 9.0;
+    const double top = std::floor((maximum - minimum) / lattice.step + 0.5);
+    // The indices fit int32: moved down when their count needs it (the largest then 2^31 - 1).
+    const double offset = std::max(0.0, top - double(std::numeric_limits<int32_t>::max()));
+    // A value of the pixel type, as the decoder's constant spline is.
+    lattice.origin =
+      type == PixelType::Float32 ? double(float(minimum + offset * lattice.step)) : minimum + offset * lattice.step;
   }
-  const double  steps = std::floor((maximum - minimum) / lattice.step + (lattice.integer ? 0.0 : 0.5));
-  const int64_t top = int64_t(steps);
-  // The indices fit int32: moved down when their count needs it (the largest then 2^31 - 1).
-  lattice.offset = std::max<int64_t>(0, top - std::numeric_limits<int32_t>::max());
-  if (lattice.integer)
-    lattice.origin = minimum + lattice.bound + double(lattice.offset) * lattice.step; // a whole number
-  else // a value of the pixel type, as the decoder's constant spline is
-    lattice.origin = type == PixelType::Float32 ? double(float(minimum + double(lattice.offset) * lattice.step))
-                                                : minimum + double(lattice.offset) * lattice.step;
 
   ResidualSamples samples(voxels);
-  double          squaredError = 0.0;
-  double          worst = 0.0;
+  for (uint64_t i = 0; i < voxels; ++i) // the lattice indices (integers: the voxels)
+  {
+    const double k = lattice.integer ? x[i] - lattice.origin : std::floor((x[i] - lattice.origin) / lattice.step + 0.5);
+    samples[i] = int32_t(std::clamp(k, -2147483648.0, 2147483647.0));
+  }
+  progress(0.1);
+  const std::vector<uint8_t> layer = EncodeBoundedLayer(samples.data(), grid, lattice.near, lattice.bound);
+  progress(0.9);
+
+  // Every voxel as the decoder gives it (the layer left the decoded samples), checked against the bound.
+  double squaredError = 0.0;
+  double worst = 0.0;
   VisitPixelType(type, [&](auto pixel) {
     using T = decltype(pixel);
-    const T spline = ConvertValue<T>(lattice.origin); // the constant spline as the decoder rasterizes it
-    // Per block: indices, then each voxel decoded as the decoder will (AddResidual) and checked.
+    const T             spline = ConvertValue<T>(lattice.origin); // the constant spline as the decoder has it
     const std::size_t   blocks = PassBlocks(voxels);
     std::vector<double> blockError(blocks, 0.0), blockWorst(blocks, 0.0);
     ParallelFor(blocks, 1, [&](std::size_t b) {
@@ -148,9 +161,6 @@ EncodeBounded(const EncoderInput & input, const EncoderOptions & options)
       double            error = 0.0, w = 0.0;
       for (std::size_t i = lo; i < hi; ++i)
       {
-        const double k = lattice.integer ? std::floor((x[i] - minimum) / lattice.step) - double(lattice.offset)
-                                         : std::floor((x[i] - lattice.origin) / lattice.step + 0.5);
-        samples[i] = int32_t(std::clamp(k, -2147483648.0, 2147483647.0));
         const double d = double(AddResidual<T>(spline, lattice.step, samples[i])) - x[i];
         error += d * d;
         w = std::max(w, std::abs(d));
@@ -167,19 +177,18 @@ EncodeBounded(const EncoderInput & input, const EncoderOptions & options)
   if (!(worst <= lattice.bound))
     throw std::logic_error("internal error: a voxel would decode " + Text(worst) +
                            " from the input, beyond the bound " + Text(lattice.bound));
-  progress(0.2);
 
   EncoderResult r;
   r.header = input.header;
   r.header.mode = FileHeader::BoundedMode;
   r.header.scale = { { 1, 1, 1 } };
   r.header.constantSpline = true;
+  r.header.numberOfPoints = 8; // the corners, as a reader gets them
   r.header.boundedLayer = true;
   r.header.quantizationOrigin = lattice.origin;
   r.header.residualStep = lattice.step;
   r.header.metadata = options.metadata;
-  r.header.residualLayer = EncodeBoundedLayer(samples.data(), grid, lattice.bound);
-  progress(0.95);
+  r.header.residualLayer = layer;
   r.bytes = SerializeFile(r.header, {});
   r.approximation = ConstantSpline(grid, r.header.scale, lattice.origin);
   r.approximation.residual = { lattice.step, std::move(samples) };

@@ -44,7 +44,7 @@ constexpr int32_t BiasReset = 256;
 /** Errors are kept capped: the weights' sums then never overflow. */
 constexpr uint32_t ErrorCap = uint32_t(1) << 28;
 
-constexpr std::size_t HeaderBytes = 8 + 4 + 4 + 4;
+constexpr std::size_t HeaderBytes = 8 + 4 + 4 + 4 + 4;
 
 /** Half octaves of a non-negative activity: 0, 1, 2, 3, then two buckets per power of two. */
 inline int
@@ -96,9 +96,12 @@ FloorDivide(int64_t a, int64_t b)
  * they cannot drift apart. `samples` points at the slab's first voxel; values are sample - minimum. */
 template <bool Decoding, typename TCoder>
 void
-CodeSlab(int32_t * samples, const GridSize & grid, int32_t slices, int64_t minimum, int64_t range, TCoder & coder,
-         const std::string & name)
+CodeSlab(int32_t * samples, const GridSize & grid, int32_t slices, int64_t minimum, int64_t range, int64_t near,
+         TCoder & coder, const std::string & name)
 {
+  const int64_t     step = 2 * near + 1;
+  const int64_t     steps = (range + 2 * near) / step + 1; // JPEG-LS's RANGE: the residual's modulus, in steps
+  const int64_t     half = steps / 2;
   const int64_t     X = grid.x, Y = grid.y;
   const std::size_t plane = std::size_t(X) * std::size_t(Y);
   // Errors of each predictor and of the final prediction, on this slice and the one before.
@@ -205,26 +208,28 @@ CodeSlab(int32_t * samples, const GridSize & grid, int32_t slices, int64_t minim
                              : nearest < activity + 1     ? 3 + side
                                                           : 0;
         SIntModel &    model = models[std::size_t(end) * CodingContexts + ActivityBucket(activity, CodingContexts)];
-        // The residual modulo the range + 1, folded around 0 (as JPEG-LS does): it then fits 32 bits
-        // whatever the samples, and the decoder's sum wraps back into the range.
-        const int64_t modulus = range + 1, half = modulus / 2;
-        int64_t       v, residual;
+        // The residual in steps of 2 near + 1 (JPEG-LS's near-lossless quantization: the decoded sample is
+        // within `near` of the input), modulo the steps the range spans,
+        // folded around 0: it then fits 32 bits whatever the samples, and the sum wraps back into the range.
+        int64_t q;
         if constexpr (Decoding)
         {
-          residual = model.Decode(coder);
-          v = prediction + residual;
-          v += v < 0 ? modulus : (v > range ? -modulus : 0);
-          if (v < 0 || v > range || residual < -half || residual >= modulus - half)
+          q = model.Decode(coder);
+          if (q < -half || q >= steps - half)
             throw FormatError(name + ": damaged bounded-error layer (a sample outside its range)");
-          samples[i] = int32_t(v + minimum);
         }
         else
         {
-          v = value(i);
-          residual = v - prediction;
-          residual += residual < -half ? modulus : (residual >= modulus - half ? -modulus : 0);
-          model.Encode(coder, int32_t(residual));
+          const int64_t e = value(i) - prediction;
+          q = e >= 0 ? (e + near) / step : -((near - e) / step);
+          q += q < -half ? steps : (q >= steps - half ? -steps : 0);
+          model.Encode(coder, int32_t(q));
         }
+        const int64_t residual = q * step;
+        int64_t       v = prediction + residual;
+        v += v < -near ? steps * step : (v > range + near ? -steps * step : 0);
+        v = Clamp(v, range);
+        samples[i] = int32_t(v + minimum); // the encoder's too: what follows is predicted from decoded samples
         biasSum[b] += residual;
         if (++biasCount[b] == BiasReset)
         {
@@ -269,7 +274,7 @@ BoundedLayerSlabSlices(const GridSize & grid)
 }
 
 std::vector<uint8_t>
-EncodeBoundedLayer(const int32_t * samples, const GridSize & grid, double maximumError)
+EncodeBoundedLayer(int32_t * samples, const GridSize & grid, uint32_t near, double maximumError)
 {
   const uint64_t                    voxels = grid.NumberOfVoxels();
   const auto                        mm = std::minmax_element(samples, samples + voxels);
@@ -278,13 +283,11 @@ EncodeBoundedLayer(const int32_t * samples, const GridSize & grid, double maximu
   const uint32_t                    slabs = uint32_t((uint32_t(grid.z) + slabSlices - 1) / slabSlices);
   const std::size_t                 plane = std::size_t(grid.x) * std::size_t(grid.y);
   std::vector<std::vector<uint8_t>> coded(slabs);
-  // CodeSlab reads the samples only; it takes them writable because the decoder writes them.
-  int32_t * writable = const_cast<int32_t *>(samples);
   ParallelFor(slabs, 1, [&](std::size_t s) {
     const int32_t     z0 = int32_t(s * slabSlices);
     const int32_t     n = std::min<int32_t>(int32_t(slabSlices), grid.z - z0);
     ArithmeticEncoder encoder(coded[s]);
-    CodeSlab<false>(writable + std::size_t(z0) * plane, grid, n, minimum, range, encoder, std::string());
+    CodeSlab<false>(samples + std::size_t(z0) * plane, grid, n, minimum, range, int64_t(near), encoder, std::string());
     encoder.Finish();
   });
   std::vector<uint8_t> out(8);
@@ -292,6 +295,7 @@ EncodeBoundedLayer(const int32_t * samples, const GridSize & grid, double maximu
   PutU32(out, uint32_t(int32_t(minimum)));
   PutU32(out, uint32_t(range));
   PutU32(out, slabSlices);
+  PutU32(out, near);
   for (const auto & c : coded)
   {
     PutU32(out, uint32_t(c.size()));
@@ -310,6 +314,7 @@ ReadBoundedLayerHeader(const std::vector<uint8_t> & layer, const GridSize & grid
   h.minimum = int32_t(GetU32(layer.data() + 8));
   h.range = GetU32(layer.data() + 12);
   h.slabSlices = GetU32(layer.data() + 16);
+  h.near = GetU32(layer.data() + 20);
   if (!std::isfinite(h.maximumError) || h.maximumError < 0.0)
     throw FormatError(name + ": damaged bounded-error layer (its bound is not a finite non-negative number)");
   if (int64_t(h.minimum) + int64_t(h.range) > std::numeric_limits<int32_t>::max())
@@ -349,7 +354,8 @@ DecodeBoundedLayer(const std::vector<uint8_t> & layer, const GridSize & grid, co
     const int32_t     z0 = int32_t(s * h.slabSlices);
     const int32_t     n = std::min<int32_t>(int32_t(h.slabSlices), grid.z - z0);
     ArithmeticDecoder decoder(layer.data() + start[s], length[s]);
-    CodeSlab<true>(samples.data() + std::size_t(z0) * plane, grid, n, h.minimum, h.range, decoder, name);
+    CodeSlab<true>(
+      samples.data() + std::size_t(z0) * plane, grid, n, h.minimum, h.range, int64_t(h.near), decoder, name);
     if (decoder.GetPosition() != length[s])
       throw FormatError(name + ": damaged bounded-error layer (" + std::to_string(length[s] - decoder.GetPosition()) +
                         " bytes follow slab " + std::to_string(s + 1) + ")");
