@@ -169,24 +169,32 @@ CodeSlab(int32_t * samples, const GridSize & grid, int32_t slices, int64_t minim
           p[6] = pc;
           count = Predictors;
         }
-        // Weights: the inverse square of each predictor's recent error around the voxel.
-        uint64_t weightSum = 0;
-        int64_t  weighted = 0;
-        int64_t  lo = std::numeric_limits<int64_t>::max(), hi = std::numeric_limits<int64_t>::min();
+        int64_t lo = std::numeric_limits<int64_t>::max(), hi = std::numeric_limits<int64_t>::min();
         for (int k = 0; k < count; ++k)
         {
           p[k] = Clamp(p[k], range);
           lo = std::min(lo, p[k]);
           hi = std::max(hi, p[k]);
-          uint64_t s = uint64_t(ew[k]) + en[k] + ((uint64_t(enw[k]) + ene[k]) >> 1);
-          if (hasPrevious)
-            s += previous[j][k];
-          const uint64_t inverse = Reciprocal(s + 1);
-          const uint64_t weight = std::max<uint64_t>(1, (inverse * inverse) >> 38);
-          weightSum += weight;
-          weighted += int64_t(weight) * p[k];
         }
-        const int64_t blended = (weighted + int64_t(weightSum / 2)) / int64_t(weightSum);
+        // Weights: the inverse square of each predictor's recent error around the voxel. Where every
+        // predictor agrees (flat regions: most of a volume's background) any weights give that value.
+        int64_t blended = lo;
+        if (lo != hi)
+        {
+          uint64_t weightSum = 0;
+          int64_t  weighted = 0;
+          for (int k = 0; k < count; ++k)
+          {
+            uint64_t s = uint64_t(ew[k]) + en[k] + ((uint64_t(enw[k]) + ene[k]) >> 1);
+            if (hasPrevious)
+              s += previous[j][k];
+            const uint64_t inverse = Reciprocal(s + 1);
+            const uint64_t weight = std::max<uint64_t>(1, (inverse * inverse) >> 38);
+            weightSum += weight;
+            weighted += int64_t(weight) * p[k];
+          }
+          blended = (weighted + int64_t(weightSum / 2)) / int64_t(weightSum);
+        }
         // Contexts: the final prediction's recent errors and how far the predictors disagree.
         constexpr int f = Predictors;
         uint64_t      activity = uint64_t(ew[f]) + en[f] + ((uint64_t(enw[f]) + ene[f]) >> 1);
@@ -196,7 +204,11 @@ CodeSlab(int32_t * samples, const GridSize & grid, int32_t slices, int64_t minim
         const int b = ActivityBucket(activity, 16) * 8 + texture;
         int64_t   correction = 0;
         if (biasCount[b] > 0)
-          correction = FloorDivide(2 * biasSum[b] + biasCount[b], 2 * int64_t(biasCount[b]));
+        {
+          // floor((2 S + c) / 2 c): without a division where the mean is below one step either way (most).
+          const int64_t a = 2 * biasSum[b] + biasCount[b], d = 2 * int64_t(biasCount[b]);
+          correction = (a >= 0 && a < d) ? 0 : (a < 0 && a >= -d) ? -1 : FloorDivide(a, d);
+        }
         const int64_t prediction = Clamp(blended + correction, range);
         // Where the prediction is at or near an end of the range (air at 0, a window's clipped values), the
         // residual's distribution is one-sided: its own models (7 classes by side and distance).
@@ -221,7 +233,7 @@ CodeSlab(int32_t * samples, const GridSize & grid, int32_t slices, int64_t minim
         else
         {
           const int64_t e = value(i) - prediction;
-          q = e >= 0 ? (e + near) / step : -((near - e) / step);
+          q = near == 0 ? e : (e >= 0 ? (e + near) / step : -((near - e) / step));
           q += q < -half ? steps : (q >= steps - half ? -steps : 0);
           model.Encode(coder, int32_t(q));
         }
