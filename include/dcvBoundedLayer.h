@@ -22,6 +22,7 @@
 #include "dcvApproximation.h"
 
 #include <cstdint>
+#include <functional>
 #include <string>
 #include <vector>
 
@@ -56,11 +57,12 @@ DelaunayCompression_EXPORT uint32_t
 BoundedLayerSlabSlices(const GridSize & grid);
 
 /** Codes the samples (laid out as the grid, x fastest), each within `near` (0: without loss; JPEG-LS's
- * near-lossless quantization of the prediction's residual), and replaces them
- * with what the decoder will give; `maximumError` is stored as the bound the file states. Slabs are coded on
- * the current task arena's threads. */
+ * near-lossless quantization of the prediction's residual), and replaces them with what the decoder will
+ * give; `maximumError` is stored as the bound the file states. Slabs are coded on the current task arena's
+ * threads; `progress`, when set, is called from the calling thread with the fraction of slabs done. */
 DelaunayCompression_EXPORT std::vector<uint8_t>
-EncodeBoundedLayer(int32_t * samples, const GridSize & grid, uint32_t near, double maximumError);
+EncodeBoundedLayer(int32_t * samples, const GridSize & grid, uint32_t near, double maximumError,
+                   const std::function<void(double)> & progress = {});
 
 /** Reads the header of a layer; throws FormatError starting with `name` when it is damaged. */
 DelaunayCompression_EXPORT BoundedLayerHeader

@@ -151,8 +151,8 @@ DelaunayCompression_EXPORT GridScale
 AutomaticScale(const std::array<double, 3> & spacing);
 
 /** The smallest MaximumError a volume of this pixel type and range can keep: 0 for integers; for floats the
- * spacing of the pixel type's values near the largest magnitude, or the range over 4e9 (the indices' 32 bits),
- * whichever is larger. */
+ * spacing of the pixel type's values near the largest magnitude, or 9 (max - min) / 4e9 (the lattice's 32-bit
+ * indices), whichever is larger. */
 DelaunayCompression_EXPORT double
 SmallestMaximumError(PixelType type, double minimum, double maximum);
 

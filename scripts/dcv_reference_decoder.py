@@ -768,8 +768,8 @@ def decode_bounded_slab(d, sx, sy, slices, span, near):
                 for k in range(count, 7):  # a slab's first slice: predictors 5 to 7 take predictor 1's error
                     current[k][j] = current[0][j]
                 ef[j] = min(abs(residual), cap)
-        if d.overrun:
-            raise DamagedFile("the bounded-error layer ends inside a slab")
+            if d.overrun:  # checked at every row's end, as the library does
+                raise DamagedFile("the bounded-error layer ends inside a slab")
     return values
 
 

@@ -145,8 +145,8 @@ EncodeBounded(const EncoderInput & input, const EncoderOptions & options)
     samples[i] = int32_t(std::clamp(k, -2147483648.0, 2147483647.0));
   }
   progress(0.1);
-  const std::vector<uint8_t> layer = EncodeBoundedLayer(samples.data(), grid, lattice.near, lattice.bound);
-  progress(0.9);
+  std::vector<uint8_t> layer =
+    EncodeBoundedLayer(samples.data(), grid, lattice.near, lattice.bound, [&](double f) { progress(0.1 + 0.8 * f); });
 
   // Every voxel as the decoder gives it (the layer left the decoded samples), checked against the bound.
   double squaredError = 0.0;
@@ -188,7 +188,7 @@ EncodeBounded(const EncoderInput & input, const EncoderOptions & options)
   r.header.quantizationOrigin = lattice.origin;
   r.header.residualStep = lattice.step;
   r.header.metadata = options.metadata;
-  r.header.residualLayer = layer;
+  r.header.residualLayer = std::move(layer);
   r.bytes = SerializeFile(r.header, {});
   r.approximation = ConstantSpline(grid, r.header.scale, lattice.origin);
   r.approximation.residual = { lattice.step, std::move(samples) };

@@ -24,6 +24,7 @@
 #include <array>
 #include <cmath>
 #include <cstring>
+#include <functional>
 #include <limits>
 
 namespace dcv
@@ -92,7 +93,7 @@ FloorDivide(int64_t a, int64_t b)
   return q - int64_t((a % b != 0) && (a < 0));
 }
 
-/** One slab, coded (TIo: the encoder's side) or decoded (the decoder's): the same code both ways, so that
+/** One slab, coded (TCoder: the arithmetic encoder) or decoded (the decoder): the same code both ways, so that
  * they cannot drift apart. `samples` points at the slab's first voxel; values are sample - minimum. */
 template <bool Decoding, typename TCoder>
 void
@@ -286,7 +287,8 @@ BoundedLayerSlabSlices(const GridSize & grid)
 }
 
 std::vector<uint8_t>
-EncodeBoundedLayer(int32_t * samples, const GridSize & grid, uint32_t near, double maximumError)
+EncodeBoundedLayer(int32_t * samples, const GridSize & grid, uint32_t near, double maximumError,
+                   const std::function<void(double)> & progress)
 {
   const uint64_t                    voxels = grid.NumberOfVoxels();
   const auto                        mm = std::minmax_element(samples, samples + voxels);
@@ -295,13 +297,22 @@ EncodeBoundedLayer(int32_t * samples, const GridSize & grid, uint32_t near, doub
   const uint32_t                    slabs = uint32_t((uint32_t(grid.z) + slabSlices - 1) / slabSlices);
   const std::size_t                 plane = std::size_t(grid.x) * std::size_t(grid.y);
   std::vector<std::vector<uint8_t>> coded(slabs);
-  ParallelFor(slabs, 1, [&](std::size_t s) {
-    const int32_t     z0 = int32_t(s * slabSlices);
-    const int32_t     n = std::min<int32_t>(int32_t(slabSlices), grid.z - z0);
-    ArithmeticEncoder encoder(coded[s]);
-    CodeSlab<false>(samples + std::size_t(z0) * plane, grid, n, minimum, range, int64_t(near), encoder, std::string());
-    encoder.Finish();
-  });
+  // As many slabs at once as there are threads, the progress reported between them (from this thread).
+  const std::size_t together = std::max<std::size_t>(1, CurrentThreads());
+  for (std::size_t first = 0; first < slabs; first += together)
+  {
+    ParallelFor(std::min<std::size_t>(together, slabs - first), 1, [&](std::size_t k) {
+      const std::size_t s = first + k;
+      const int32_t     z0 = int32_t(s * slabSlices);
+      const int32_t     n = std::min<int32_t>(int32_t(slabSlices), grid.z - z0);
+      ArithmeticEncoder encoder(coded[s]);
+      CodeSlab<false>(
+        samples + std::size_t(z0) * plane, grid, n, minimum, range, int64_t(near), encoder, std::string());
+      encoder.Finish();
+    });
+    if (progress)
+      progress(double(std::min<std::size_t>(slabs, first + together)) / double(slabs));
+  }
   std::vector<uint8_t> out(8);
   std::memcpy(out.data(), &maximumError, 8); // little-endian hosts only, as the rest of the container
   PutU32(out, uint32_t(int32_t(minimum)));
