@@ -38,9 +38,9 @@ flags=(-std=c++17 -O1 -g -fno-omit-frame-pointer -frounding-math -fsanitize=addr
   -Iinclude -Isrc/core -Isrc/mesh -Isrc/layer -I"$out/include" -isystem /usr/include/eigen3 -DNDEBUG -DCGAL_LINKED_WITH_TBB)
 core=(codec/dcvFileFormat codec/dcvCodec codec/dcvArithmeticCoder codec/dcvPositionCoder mesh/dcvApproximation
   mesh/dcvTetrahedralization mesh/dcvTetrahedralize layer/dcvResidualLayer layer/dcvCompactLayer layer/dcvInterSliceWavelet
-  layer/dcvVideoLayer layer/dcvVideoHEVC layer/dcvVideoAV1)
+  layer/dcvVideoLayer layer/dcvVideoHEVC layer/dcvVideoAV1 layer/dcvBoundedLayer)
 # What src/itk/itkDCV*IO.cxx need besides: the encoder (DCVImageIO writes too).
-encoder=(codec/dcvEncoder codec/dcvRateControl mesh/dcvRefinementEngine mesh/dcvDecimation mesh/dcvLeastSquares
+encoder=(codec/dcvEncoder codec/dcvBoundedEncoder codec/dcvRateControl mesh/dcvRefinementEngine mesh/dcvDecimation mesh/dcvLeastSquares
   core/dcvPixelSource)
 compile() { # SOURCE OBJECT COMPILER FLAGS...: when the source or a header is newer than the object
   local source=$1 object=$2
