@@ -73,6 +73,8 @@ TEST(DCVImageIO, ImageFileWriterWritesWhatTheToolWrites)
     { "--bpv 0.125", nullptr }, // the IO's default
     { "--bpv 0.07", [](itk::DCVImageIO & io) { io.SetBitsPerVoxel(0.07); } },
     { "--psnr 27", [](itk::DCVImageIO & io) { io.SetPSNR(27.0); } },
+    { "--max-error 0", [](itk::DCVImageIO & io) { io.SetMaximumError(0.0); } },
+    { "--max-error 2", [](itk::DCVImageIO & io) { io.SetMaximumError(2.0); } },
     { "--points 300 -m dec",
       [](itk::DCVImageIO & io) {
         io.SetNumberOfPoints(300);
