@@ -29,10 +29,14 @@
 #include <functional>
 #include <limits>
 #include <memory>
+#include <new>
 #include <thread>
 #include <type_traits>
 #include <utility>
 #include <vector>
+#if defined(__linux__)
+#  include <sys/mman.h>
+#endif
 
 /** \file dcvApproximation.h
  * The product of the method: significant points (grid position and value) and the linear spline
@@ -47,7 +51,9 @@ using Tetrahedron = std::array<uint32_t, 4>;
 
 /** std::allocator, except that the elements a resize or the size constructor adds are left
  * uninitialized: a decoder's volume-sized buffer, which its threads then write whole, is not first
- * zeroed by one thread (norm-256: 67 MB of page faults and zeros, some 40 ms). */
+ * zeroed by one thread (norm-256: 67 MB of page faults and zeros, some 40 ms). Blocks of 4 MiB and more are
+ * aligned to 2 MiB and, on Linux, asked for transparent huge pages: a 4 KiB page fault per 4 KiB written
+ * was a sixth of the bounded-error layer's decoding time (norm-256, one thread). */
 template <typename T>
 struct UninitializedAllocator : std::allocator<T>
 {
@@ -61,6 +67,30 @@ struct UninitializedAllocator : std::allocator<T>
   template <typename U>
   UninitializedAllocator(const UninitializedAllocator<U> &) noexcept
   {}
+  static constexpr std::size_t HugePage = std::size_t(1) << 21;
+  static constexpr std::size_t HugeBlock = std::size_t(1) << 22;
+  T *
+  allocate(std::size_t n)
+  {
+    if (n > std::size_t(-1) / sizeof(T))
+      throw std::bad_array_new_length();
+    const std::size_t bytes = n * sizeof(T);
+    if (bytes < HugeBlock)
+      return std::allocator<T>::allocate(n);
+    void * p = ::operator new(bytes, std::align_val_t(HugePage));
+#if defined(__linux__) && defined(MADV_HUGEPAGE)
+    madvise(p, bytes, MADV_HUGEPAGE); // advice only: without huge pages the block works as any other
+#endif
+    return static_cast<T *>(p);
+  }
+  void
+  deallocate(T * p, std::size_t n) noexcept
+  {
+    if (n * sizeof(T) < HugeBlock)
+      std::allocator<T>::deallocate(p, n);
+    else
+      ::operator delete(p, std::align_val_t(HugePage));
+  }
   template <typename U>
   void
   construct(U * p) noexcept(std::is_nothrow_default_constructible<U>::value)

@@ -110,9 +110,24 @@ public:
   /** Bytes are appended to `out` (which may already hold a header). */
   explicit ArithmeticEncoder(std::vector<uint8_t> & out);
 
-  /** Codes one bit (0 or non-zero) with an adaptive probability, then adapts it. */
+  /** Codes one bit (0 or non-zero) with an adaptive probability, then adapts it. Inline: the bounded-error
+   * layer codes one or more a voxel. */
   void
-  Encode(BitModel & model, int bit);
+  Encode(BitModel & model, int bit)
+  {
+    const uint32_t bound = uint32_t((uint64_t(m_Range) * model.GetProbability()) >> BitModel::ProbabilityBits);
+    if (bit)
+    {
+      m_Low += bound;
+      m_Range -= bound;
+    }
+    else
+    {
+      m_Range = bound;
+    }
+    model.Update(bit);
+    Normalize();
+  }
 
   /** Codes the low `bits` bits of `value` (0 <= bits <= 32), most significant first, each with
    * probability 1/2. */
@@ -158,8 +173,27 @@ class DelaunayCompression_EXPORT ArithmeticDecoder
 public:
   ArithmeticDecoder(const uint8_t * data, std::size_t size);
 
+  /** Inline, as ArithmeticEncoder::Encode. */
   int
-  Decode(BitModel & model);
+  Decode(BitModel & model)
+  {
+    const uint32_t bound = uint32_t((uint64_t(m_Range) * model.GetProbability()) >> BitModel::ProbabilityBits);
+    int            bit;
+    if (m_Code < bound)
+    {
+      m_Range = bound;
+      bit = 0;
+    }
+    else
+    {
+      m_Code -= bound;
+      m_Range -= bound;
+      bit = 1;
+    }
+    model.Update(bit);
+    Normalize();
+    return bit;
+  }
 
   uint32_t
   DecodeEquiprobable(int bits);
@@ -239,12 +273,28 @@ class DelaunayCompression_EXPORT SIntModel
 public:
   explicit SIntModel(int maximumShift = 5);
 
+  /** The zero flag inline (most residuals of the bounded-error layer are 0), the rest out of line. */
   void
-  Encode(ArithmeticEncoder & encoder, int32_t value);
+  Encode(ArithmeticEncoder & encoder, int32_t value)
+  {
+    encoder.Encode(m_Zero, value == 0);
+    if (value != 0)
+    {
+      EncodeNonZero(encoder, value);
+    }
+  }
   int32_t
-  Decode(ArithmeticDecoder & decoder);
+  Decode(ArithmeticDecoder & decoder)
+  {
+    return decoder.Decode(m_Zero) ? 0 : DecodeNonZero(decoder);
+  }
 
 private:
+  void
+  EncodeNonZero(ArithmeticEncoder & encoder, int32_t value);
+  int32_t
+  DecodeNonZero(ArithmeticDecoder & decoder);
+
   BitModel  m_Zero;
   BitModel  m_Sign;
   UIntModel m_Magnitude;

@@ -59,23 +59,6 @@ ArithmeticEncoder::ShiftLow()
 }
 
 void
-ArithmeticEncoder::Encode(BitModel & model, int bit)
-{
-  const uint32_t bound = uint32_t((uint64_t(m_Range) * model.GetProbability()) >> BitModel::ProbabilityBits);
-  if (bit)
-  {
-    m_Low += bound;
-    m_Range -= bound;
-  }
-  else
-  {
-    m_Range = bound;
-  }
-  model.Update(bit);
-  Normalize();
-}
-
-void
 ArithmeticEncoder::EncodeEquiprobable(uint32_t value, int bits)
 {
   if (bits < 0 || bits > 32)
@@ -129,27 +112,6 @@ ArithmeticDecoder::ArithmeticDecoder(const uint8_t * data, std::size_t size)
   {
     m_Code = (m_Code << 8) | NextByte();
   }
-}
-
-int
-ArithmeticDecoder::Decode(BitModel & model)
-{
-  const uint32_t bound = uint32_t((uint64_t(m_Range) * model.GetProbability()) >> BitModel::ProbabilityBits);
-  int            bit;
-  if (m_Code < bound)
-  {
-    m_Range = bound;
-    bit = 0;
-  }
-  else
-  {
-    m_Code -= bound;
-    m_Range -= bound;
-    bit = 1;
-  }
-  model.Update(bit);
-  Normalize();
-  return bit;
 }
 
 uint32_t
@@ -265,25 +227,16 @@ SIntModel::SIntModel(int maximumShift)
 {}
 
 void
-SIntModel::Encode(ArithmeticEncoder & encoder, int32_t value)
+SIntModel::EncodeNonZero(ArithmeticEncoder & encoder, int32_t value)
 {
-  encoder.Encode(m_Zero, value == 0);
-  if (value == 0)
-  {
-    return;
-  }
   encoder.Encode(m_Sign, value < 0);
   const uint32_t magnitude = value < 0 ? uint32_t(0) - uint32_t(value) : uint32_t(value);
   m_Magnitude.Encode(encoder, magnitude - 1);
 }
 
 int32_t
-SIntModel::Decode(ArithmeticDecoder & decoder)
+SIntModel::DecodeNonZero(ArithmeticDecoder & decoder)
 {
-  if (decoder.Decode(m_Zero))
-  {
-    return 0;
-  }
   const bool     negative = decoder.Decode(m_Sign) != 0;
   const uint32_t magnitude = m_Magnitude.Decode(decoder) + 1u; // wraps to 0 on garbage: harmless
   // Modular conversion (defined since C++20, and what every supported compiler does): garbage
