@@ -157,10 +157,12 @@ private:
 
   static constexpr uint32_t TopValue = 1u << 24;
 
-  std::vector<uint8_t> & m_Out;
+  std::vector<uint8_t> * m_Out; // a pointer, not a reference: a coder of runs works on a copy, then assigns it
   std::size_t            m_Start;
   uint64_t               m_Low{ 0 };
-  uint32_t               m_Range{ 0xFFFFFFFFu };
+  // 64 bits though 32 are used: stores of 32-bit samples around the inline Encode may then not alias the
+  // state (strict aliasing), which the compiler keeps in registers instead of reloading it a bit.
+  uint64_t               m_Range{ 0xFFFFFFFFu };
   uint8_t                m_Cache{ 0 };
   uint64_t               m_CacheSize{ 1 };
   bool                   m_First{ true };
@@ -230,7 +232,7 @@ private:
     while (m_Range < TopValue)
     {
       m_Range <<= 8;
-      m_Code = (m_Code << 8) | NextByte();
+      m_Code = ((m_Code << 8) | NextByte()) & 0xFFFFFFFFu;
     }
   }
 
@@ -239,8 +241,9 @@ private:
   const uint8_t * m_Data;
   std::size_t     m_Size;
   std::size_t     m_Position{ 0 };
-  uint32_t        m_Range{ 0xFFFFFFFFu };
-  uint32_t        m_Code{ 0 };
+  // 64 bits, as the encoder's m_Range; m_Code is kept below 2^32 (Normalize) as a 32-bit code would be.
+  uint64_t        m_Range{ 0xFFFFFFFFu };
+  uint64_t        m_Code{ 0 };
   bool            m_Overrun{ false };
 };
 
@@ -287,6 +290,13 @@ public:
   Decode(ArithmeticDecoder & decoder)
   {
     return decoder.Decode(m_Zero) ? 0 : DecodeNonZero(decoder);
+  }
+  /** The zero flag's model (1: the value is 0), for a coder of runs of zeros that keeps a copy of it in a
+   * register while it codes the flags itself, then stores it back. */
+  BitModel &
+  ZeroFlag()
+  {
+    return m_Zero;
   }
 
 private:

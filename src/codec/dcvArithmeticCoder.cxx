@@ -27,7 +27,7 @@ namespace dcv
 // Encoder
 
 ArithmeticEncoder::ArithmeticEncoder(std::vector<uint8_t> & out)
-  : m_Out(out)
+  : m_Out(&out)
   , m_Start(out.size())
 {}
 
@@ -48,7 +48,7 @@ ArithmeticEncoder::ShiftLow()
       }
       else
       {
-        m_Out.push_back(uint8_t(byte + carry));
+        m_Out->push_back(uint8_t(byte + carry));
       }
       byte = 0xFF;
     } while (--m_CacheSize != 0);
@@ -95,10 +95,10 @@ ArithmeticEncoder::GetBitCount() const
 {
   if (m_Finished)
   {
-    return 8.0 * double(m_Out.size() - m_Start);
+    return 8.0 * double(m_Out->size() - m_Start);
   }
   // Bytes out, pending bytes, and the information held in the range.
-  return 8.0 * double(m_Out.size() - m_Start + m_CacheSize) + 32.0 - std::log2(double(m_Range));
+  return 8.0 * double(m_Out->size() - m_Start + m_CacheSize) + 32.0 - std::log2(double(m_Range));
 }
 
 // ---------------------------------------------------------------------------------------------
