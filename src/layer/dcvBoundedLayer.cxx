@@ -145,7 +145,6 @@ private:
   void
   Slice(int32_t z)
   {
-    constexpr int     count = HasPrevious ? Predictors : InSlice;
     Errors *          current = m_Errors.data() + std::size_t(z & 1) * m_Plane;
     const Errors *    previous = m_Errors.data() + std::size_t((z + 1) & 1) * m_Plane; // slice z - 1's
     const std::size_t sliceStart = std::size_t(z) * m_Plane;
@@ -192,86 +191,10 @@ private:
           }
         }
         run = false;
-        // Neighbours within the slice (in-plane offsets), replicated where the slice ends: north from
-        // the west on the first row, west from the north on the first column.
-        const std::size_t jn = y > 0 ? j - X : (x > 0 ? j - 1 : j);
-        const std::size_t jw = x > 0 ? j - 1 : jn;
-        const std::size_t jnw = (x > 0 && y > 0) ? j - X - 1 : jn;
-        const std::size_t jne = (y > 0 && x + 1 < X) ? j - X + 1 : jn;
-        const bool        first = jn == j; // the slab's first voxel of a slice: nothing before it
-        int64_t           w, n, nw, ne;
-        if (first)
-        {
-          w = n = nw = ne = HasPrevious ? Value(i - m_Plane) : 0;
-        }
+        if (y > 0 && x > 0 && x + 1 < X)
+          General<HasPrevious, true>(x, y, sliceStart, current, previous);
         else
-        {
-          w = Value(sliceStart + jw);
-          n = Value(sliceStart + jn);
-          nw = Value(sliceStart + jnw);
-          ne = Value(sliceStart + jne);
-        }
-        // The first voxel of a slice has no neighbour in it: its in-slice errors are 0.
-        static const Errors             none{};
-        const Errors &                  ew = first ? none : current[jw];
-        const Errors &                  en = first ? none : current[jn];
-        const Errors &                  enw = first ? none : current[jnw];
-        const Errors &                  ene = first ? none : current[jne];
-        std::array<int64_t, Predictors> p;
-        p[0] = w + n - nw;
-        p[1] = w + ne - n;
-        p[2] = n;
-        p[3] = w;
-        if constexpr (HasPrevious)
-        {
-          const std::size_t q = i - m_Plane;
-          const int64_t     pc = Value(q);
-          const int64_t     pw = Value(q - j + jw), pn = Value(q - j + jn), pnw = Value(q - j + jnw),
-                        pne = Value(q - j + jne);
-          p[4] = pc + (w - pw) + (n - pn) - (nw - pnw);
-          p[5] = pc + FloorDivide((w - pw) + (n - pn) + (ne - pne) + (nw - pnw) + 2, 4);
-          p[6] = pc;
-        }
-        int64_t lo = std::numeric_limits<int64_t>::max(), hi = std::numeric_limits<int64_t>::min();
-        for (int k = 0; k < count; ++k)
-        {
-          p[k] = Clamp(p[k], m_Range);
-          lo = std::min(lo, p[k]);
-          hi = std::max(hi, p[k]);
-        }
-        // Weights: the inverse square of each predictor's recent error around the voxel. Where every
-        // predictor agrees (flat regions: most of a volume's background) any weights give that value.
-        int64_t blended = lo;
-        if (lo != hi)
-        {
-          uint64_t weightSum = 0;
-          int64_t  weighted = 0;
-          for (int k = 0; k < count; ++k)
-          {
-            uint64_t s = uint64_t(ew[k]) + en[k] + ((uint64_t(enw[k]) + ene[k]) >> 1);
-            if constexpr (HasPrevious)
-              s += previous[j][k];
-            const uint64_t inverse = Reciprocal(s + 1);
-            const uint64_t weight = std::max<uint64_t>(1, (inverse * inverse) >> 38);
-            weightSum += weight;
-            weighted += int64_t(weight) * p[k];
-          }
-          blended = (weighted + int64_t(weightSum / 2)) / int64_t(weightSum);
-        }
-        // Contexts: the final prediction's recent errors and how far the predictors disagree.
-        uint64_t activity = uint64_t(ew[Final]) + en[Final] + ((uint64_t(enw[Final]) + ene[Final]) >> 1);
-        activity += HasPrevious ? previous[j][Final] : ew[Final];
-        activity += uint64_t(hi - lo) >> 1;
-        const int texture =
-          int(w > blended) | (int(n > blended) << 1) | (HasPrevious ? int(p[6] > blended) << 2 : 0);
-        int64_t       residual;
-        const int64_t v = Voxel<false>(i, blended, activity, texture, residual);
-        Errors &      out = current[j];
-        for (int k = 0; k < count; ++k)
-          out[k] = uint32_t(std::min<uint64_t>(uint64_t(std::abs(v - p[k])), ErrorCap));
-        for (int k = count; k < Predictors; ++k)
-          out[k] = out[0]; // the slab's first slice: across-slice predictors start as the gradient
-        out[Final] = uint32_t(std::min<uint64_t>(uint64_t(std::abs(residual)), ErrorCap));
+          General<HasPrevious, false>(x, y, sliceStart, current, previous);
       }
       // A damaged stream is refused at the row it runs out in, not after the whole slab.
       if constexpr (Decoding)
@@ -280,6 +203,98 @@ private:
           throw FormatError(m_Name + ": the bounded-error layer ends inside a slab");
       }
     }
+  }
+
+  /** Voxel (x, y) of the slice at sliceStart, every predictor computed and blended. Interior: 0 < x < X - 1
+   * and y > 0, every neighbour inside the slice (the compiler then drops the edges' cases). */
+  template <bool HasPrevious, bool Interior>
+  void
+  General(int64_t x, int64_t y, std::size_t sliceStart, Errors * current, const Errors * previous)
+  {
+    constexpr int     count = HasPrevious ? Predictors : InSlice;
+    const int64_t     X = m_X;
+    const std::size_t j = std::size_t(y * X + x);
+    const std::size_t i = sliceStart + j;
+    // Neighbours within the slice (in-plane offsets), replicated where the slice ends: north from
+    // the west on the first row, west from the north on the first column.
+    const std::size_t jn = Interior ? j - X : y > 0 ? j - X : (x > 0 ? j - 1 : j);
+    const std::size_t jw = Interior || x > 0 ? j - 1 : jn;
+    const std::size_t jnw = Interior || (x > 0 && y > 0) ? j - X - 1 : jn;
+    const std::size_t jne = Interior || (y > 0 && x + 1 < X) ? j - X + 1 : jn;
+    const bool        first = !Interior && jn == j; // the slab's first voxel of a slice: nothing before it
+    int64_t           w, n, nw, ne;
+    if (first)
+    {
+      w = n = nw = ne = HasPrevious ? Value(i - m_Plane) : 0;
+    }
+    else
+    {
+      w = Value(sliceStart + jw);
+      n = Value(sliceStart + jn);
+      nw = Value(sliceStart + jnw);
+      ne = Value(sliceStart + jne);
+    }
+    // The first voxel of a slice has no neighbour in it: its in-slice errors are 0.
+    static const Errors             none{};
+    const Errors &                  ew = first ? none : current[jw];
+    const Errors &                  en = first ? none : current[jn];
+    const Errors &                  enw = first ? none : current[jnw];
+    const Errors &                  ene = first ? none : current[jne];
+    std::array<int64_t, Predictors> p;
+    p[0] = w + n - nw;
+    p[1] = w + ne - n;
+    p[2] = n;
+    p[3] = w;
+    if constexpr (HasPrevious)
+    {
+      const std::size_t q = i - m_Plane;
+      const int64_t     pc = Value(q);
+      const int64_t     pw = Value(q - j + jw), pn = Value(q - j + jn), pnw = Value(q - j + jnw),
+                    pne = Value(q - j + jne);
+      p[4] = pc + (w - pw) + (n - pn) - (nw - pnw);
+      p[5] = pc + FloorDivide((w - pw) + (n - pn) + (ne - pne) + (nw - pnw) + 2, 4);
+      p[6] = pc;
+    }
+    int64_t lo = std::numeric_limits<int64_t>::max(), hi = std::numeric_limits<int64_t>::min();
+    for (int k = 0; k < count; ++k)
+    {
+      p[k] = Clamp(p[k], m_Range);
+      lo = std::min(lo, p[k]);
+      hi = std::max(hi, p[k]);
+    }
+    // Weights: the inverse square of each predictor's recent error around the voxel. Where every
+    // predictor agrees (flat regions: most of a volume's background) any weights give that value.
+    int64_t blended = lo;
+    if (lo != hi)
+    {
+      uint64_t weightSum = 0;
+      int64_t  weighted = 0;
+      for (int k = 0; k < count; ++k)
+      {
+        uint64_t s = uint64_t(ew[k]) + en[k] + ((uint64_t(enw[k]) + ene[k]) >> 1);
+        if constexpr (HasPrevious)
+          s += previous[j][k];
+        const uint64_t inverse = Reciprocal(s + 1);
+        const uint64_t weight = std::max<uint64_t>(1, (inverse * inverse) >> 38);
+        weightSum += weight;
+        weighted += int64_t(weight) * p[k];
+      }
+      blended = (weighted + int64_t(weightSum / 2)) / int64_t(weightSum);
+    }
+    // Contexts: the final prediction's recent errors and how far the predictors disagree.
+    uint64_t activity = uint64_t(ew[Final]) + en[Final] + ((uint64_t(enw[Final]) + ene[Final]) >> 1);
+    activity += HasPrevious ? previous[j][Final] : ew[Final];
+    activity += uint64_t(hi - lo) >> 1;
+    const int texture =
+      int(w > blended) | (int(n > blended) << 1) | (HasPrevious ? int(p[6] > blended) << 2 : 0);
+    int64_t       residual;
+    const int64_t v = Voxel<false>(i, blended, activity, texture, residual);
+    Errors &      out = current[j];
+    for (int k = 0; k < count; ++k)
+      out[k] = uint32_t(std::min<uint64_t>(uint64_t(std::abs(v - p[k])), ErrorCap));
+    for (int k = count; k < Predictors; ++k)
+      out[k] = out[0]; // the slab's first slice: across-slice predictors start as the gradient
+    out[Final] = uint32_t(std::min<uint64_t>(uint64_t(std::abs(residual)), ErrorCap));
   }
 
   /** Voxels x, x + 1, ... of row y (x > 0, y > 0) while each is flat on the value of the voxel before it, with a
