@@ -68,9 +68,9 @@ main(int argc, char * argv[])
     grid.x = std::stoi(argv[2]);
     grid.y = std::stoi(argv[3]);
     grid.z = std::stoi(argv[4]);
-    const int      bits = std::stoi(argv[5]);
-    const int      nearLossless = std::stoi(argv[6]);
-    const int      threads = argc == 8 ? std::stoi(argv[7]) : 0;
+    const int bits = std::stoi(argv[5]);
+    const int nearLossless = std::stoi(argv[6]);
+    const int threads = argc == 8 ? std::stoi(argv[7]) : 0;
     if (grid.x <= 0 || grid.y <= 0 || grid.z <= 0 || bits < 1 || bits > 16 || nearLossless < 0 || threads < 0)
     {
       return Usage();
@@ -82,8 +82,11 @@ main(int argc, char * argv[])
     const std::vector<uint8_t> raw{ std::istreambuf_iterator<char>(in), std::istreambuf_iterator<char>() };
     if (!in.is_open() || raw.size() != voxels * bytesPerSample)
     {
-      std::fprintf(
-        stderr, "dcvBoundedBenchmark: %s: expected %zu bytes, read %zu\n", argv[1], voxels * bytesPerSample, raw.size());
+      std::fprintf(stderr,
+                   "dcvBoundedBenchmark: %s: expected %zu bytes, read %zu\n",
+                   argv[1],
+                   voxels * bytesPerSample,
+                   raw.size());
       return 1;
     }
     std::vector<int32_t> input(voxels);
@@ -92,7 +95,7 @@ main(int argc, char * argv[])
       input[i] = bytesPerSample == 1 ? raw[i] : int32_t(raw[2 * i] | (raw[2 * i + 1] << 8));
     }
 
-    tbb::task_arena arena(threads == 0 ? tbb::task_arena::automatic : threads);
+    tbb::task_arena      arena(threads == 0 ? tbb::task_arena::automatic : threads);
     std::vector<int32_t> encoded = input; // the encoder leaves the decoded samples in place
     std::vector<uint8_t> layer;
     auto                 start = Clock::now();
@@ -108,13 +111,20 @@ main(int argc, char * argv[])
     {
       if (decoded[i] != encoded[i] || std::abs(decoded[i] - input[i]) > nearLossless)
       {
-        std::fprintf(stderr, "dcvBoundedBenchmark: voxel %zu: input %d, encoder %d, decoder %d\n", i, input[i],
-                     encoded[i], decoded[i]);
+        std::fprintf(stderr,
+                     "dcvBoundedBenchmark: voxel %zu: input %d, encoder %d, decoder %d\n",
+                     i,
+                     input[i],
+                     encoded[i],
+                     decoded[i]);
         return 1;
       }
     }
-    std::printf("bytes %zu\nencode_seconds %.6f\ndecode_seconds %.6f\nthreads %d\n", layer.size(), encodeSeconds,
-                decodeSeconds, arena.max_concurrency());
+    std::printf("bytes %zu\nencode_seconds %.6f\ndecode_seconds %.6f\nthreads %d\n",
+                layer.size(),
+                encodeSeconds,
+                decodeSeconds,
+                arena.max_concurrency());
     return 0;
   }
   catch (const std::exception & e)

@@ -52,8 +52,8 @@ using Tetrahedron = std::array<uint32_t, 4>;
 /** std::allocator, except that the elements a resize or the size constructor adds are left
  * uninitialized: a decoder's volume-sized buffer, which its threads then write whole, is not first
  * zeroed by one thread (norm-256: 67 MB of page faults and zeros, some 40 ms). Blocks of 4 MiB and more are
- * aligned to 2 MiB and, on Linux, asked for transparent huge pages: a 4 KiB page fault per 4 KiB written
- * was a sixth of the bounded-error layer's decoding time (norm-256, one thread). */
+ * aligned to 2 MiB and, on Linux, asked for transparent huge pages: with a page fault per 4 KiB written, the
+ * bounded-error layer decoded norm-256 in 0.39 s on one thread instead of 0.22 to 0.26. */
 template <typename T>
 struct UninitializedAllocator : std::allocator<T>
 {

@@ -160,9 +160,7 @@ private:
   std::vector<uint8_t> * m_Out; // a pointer, not a reference: a coder of runs works on a copy, then assigns it
   std::size_t            m_Start;
   uint64_t               m_Low{ 0 };
-  // 64 bits though 32 are used: stores of 32-bit samples around the inline Encode may then not alias the
-  // state (strict aliasing), which the compiler keeps in registers instead of reloading it a bit.
-  uint64_t               m_Range{ 0xFFFFFFFFu };
+  uint32_t               m_Range{ 0xFFFFFFFFu };
   uint8_t                m_Cache{ 0 };
   uint64_t               m_CacheSize{ 1 };
   bool                   m_First{ true };
@@ -232,7 +230,7 @@ private:
     while (m_Range < TopValue)
     {
       m_Range <<= 8;
-      m_Code = ((m_Code << 8) | NextByte()) & 0xFFFFFFFFu;
+      m_Code = (m_Code << 8) | NextByte();
     }
   }
 
@@ -241,9 +239,8 @@ private:
   const uint8_t * m_Data;
   std::size_t     m_Size;
   std::size_t     m_Position{ 0 };
-  // 64 bits, as the encoder's m_Range; m_Code is kept below 2^32 (Normalize) as a 32-bit code would be.
-  uint64_t        m_Range{ 0xFFFFFFFFu };
-  uint64_t        m_Code{ 0 };
+  uint32_t        m_Range{ 0xFFFFFFFFu };
+  uint32_t        m_Code{ 0 };
   bool            m_Overrun{ false };
 };
 

@@ -249,8 +249,7 @@ private:
     {
       const std::size_t q = i - m_Plane;
       const int64_t     pc = Value(q);
-      const int64_t     pw = Value(q - j + jw), pn = Value(q - j + jn), pnw = Value(q - j + jnw),
-                    pne = Value(q - j + jne);
+      const int64_t pw = Value(q - j + jw), pn = Value(q - j + jn), pnw = Value(q - j + jnw), pne = Value(q - j + jne);
       p[4] = pc + (w - pw) + (n - pn) - (nw - pnw);
       p[5] = pc + FloorDivide((w - pw) + (n - pn) + (ne - pne) + (nw - pnw) + 2, 4);
       p[6] = pc;
@@ -285,8 +284,7 @@ private:
     uint64_t activity = uint64_t(ew[Final]) + en[Final] + ((uint64_t(enw[Final]) + ene[Final]) >> 1);
     activity += HasPrevious ? previous[j][Final] : ew[Final];
     activity += uint64_t(hi - lo) >> 1;
-    const int texture =
-      int(w > blended) | (int(n > blended) << 1) | (HasPrevious ? int(p[6] > blended) << 2 : 0);
+    const int     texture = int(w > blended) | (int(n > blended) << 1) | (HasPrevious ? int(p[6] > blended) << 2 : 0);
     int64_t       residual;
     const int64_t v = Voxel<false>(i, blended, activity, texture, residual);
     Errors &      out = current[j];
@@ -424,10 +422,10 @@ private:
     return v;
   }
 
-  int32_t * const     m_Samples;
-  const int64_t       m_X, m_Y;
-  const std::size_t   m_Plane;
-  const int64_t       m_Minimum, m_Range, m_Near, m_Step, m_Steps, m_Half;
+  int32_t * const                                     m_Samples;
+  const int64_t                                       m_X, m_Y;
+  const std::size_t                                   m_Plane;
+  const int64_t                                       m_Minimum, m_Range, m_Near, m_Step, m_Steps, m_Half;
   std::vector<Errors, UninitializedAllocator<Errors>> m_Errors; // huge pages: see UninitializedAllocator
   // Models that settle slower than the points' (shift 6, not 5): 1% smaller on the dev volumes, whose
   // contexts see many thousands of residuals each.
