@@ -374,17 +374,10 @@ TEST(ResidualLayer, ConstantSplineIsFilled)
   const GridSize g{ 9, 7, 5 };
   for (double value : { 128.0, -1023.5, 0.3, 70000.7 })
   {
-    dcv::Approximation a;
-    a.grid = g;
-    for (int32_t z : { 0, g.z - 1 })
-      for (int32_t y : { 0, g.y - 1 })
-        for (int32_t x : { 0, g.x - 1 })
-          a.points.push_back({ x, y, z });
-    a.values.assign(8, value);
     for (const dcv::GridScale scale : { dcv::GridScale{ { 1, 1, 1 } }, dcv::GridScale{ { 1, 1, 7 } } })
     {
-      a.scale = scale;
-      a.tetrahedra = dcv::Tetrahedralize(a.points, a.scale);
+      const dcv::Approximation a = dcv::ConstantSpline(g, scale, value);
+      ASSERT_EQ(a.points.size(), 8u);
       std::vector<int16_t> i16(g.NumberOfVoxels(), 1);
       std::vector<float>   f32(g.NumberOfVoxels(), 1.0f);
       std::vector<uint8_t> u8(g.NumberOfVoxels(), 1);
@@ -402,7 +395,8 @@ TEST(ResidualLayer, ConstantSplineIsFilled)
     std::vector<float> voxels(g.NumberOfVoxels());
     for (std::size_t i = 0; i < voxels.size(); ++i)
       voxels[i] = float(int(i % 13) * 10);
-    std::vector<int16_t> decoded(g.NumberOfVoxels());
+    const dcv::Approximation a = dcv::ConstantSpline(g, dcv::GridScale{ { 1, 1, 7 } }, value);
+    std::vector<int16_t>     decoded(g.NumberOfVoxels());
     dcv::Rasterize(a, decoded.data());
     const dcv::ResidualSearch search(voxels.data(), dcv::PixelType::Int16, a, 1.0, 1000);
     EXPECT_EQ(search.SplineError(), dcv::SquaredError(voxels.data(), decoded.data(), decoded.size())) << value;
@@ -413,15 +407,7 @@ TEST(ResidualLayer, ConstantSplineIsFilled)
 dcv::Approximation
 CornersAtZero(const GridSize & g)
 {
-  dcv::Approximation corners;
-  corners.grid = g;
-  for (int32_t z : { 0, g.z - 1 })
-    for (int32_t y : { 0, g.y - 1 })
-      for (int32_t x : { 0, g.x - 1 })
-        corners.points.push_back({ x, y, z });
-  corners.values.assign(8, 0.0);
-  corners.tetrahedra = dcv::Tetrahedralize(corners.points);
-  return corners;
+  return dcv::ConstantSpline(g, dcv::GridScale{ { 1, 1, 1 } }, 0.0);
 }
 
 // Filling the budget never takes more than it, never decodes worse, and stops at once where the whole

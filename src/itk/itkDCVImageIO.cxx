@@ -28,6 +28,18 @@
 
 namespace itk
 {
+namespace
+{
+/** The writing targets a setter turns off before it sets its own (the number of points stays: it counts only
+ * where none of them is set). */
+void
+ClearTargets(dcv::EncoderOptions & options)
+{
+  options.bitsPerVoxel = 0.0;
+  options.psnr = 0.0;
+  options.maximumError = -1.0;
+}
+} // namespace
 
 DCVImageIO::DCVImageIO()
 {
@@ -42,37 +54,32 @@ DCVImageIO::DCVImageIO()
 void
 DCVImageIO::SetBitsPerVoxel(double bitsPerVoxel)
 {
+  ClearTargets(m_Options);
   m_Options.bitsPerVoxel = bitsPerVoxel;
-  m_Options.psnr = 0.0;
-  m_Options.maximumError = -1.0;
   this->Modified();
 }
 
 void
 DCVImageIO::SetPSNR(double psnr)
 {
+  ClearTargets(m_Options);
   m_Options.psnr = psnr;
-  m_Options.bitsPerVoxel = 0.0;
-  m_Options.maximumError = -1.0;
   this->Modified();
 }
 
 void
 DCVImageIO::SetMaximumError(double maximumError)
 {
+  ClearTargets(m_Options);
   m_Options.maximumError = maximumError;
-  m_Options.bitsPerVoxel = 0.0;
-  m_Options.psnr = 0.0;
   this->Modified();
 }
 
 void
 DCVImageIO::SetNumberOfPoints(SizeValueType numberOfPoints)
 {
+  ClearTargets(m_Options);
   m_Options.numberOfPoints = numberOfPoints;
-  m_Options.bitsPerVoxel = 0.0;
-  m_Options.psnr = 0.0;
-  m_Options.maximumError = -1.0;
   this->Modified();
 }
 
