@@ -168,8 +168,7 @@ private:
           const Errors *       e = current + j;
           const std::ptrdiff_t P = std::ptrdiff_t(m_Plane);
           const bool           flat =
-            run ? (s[-X + 1] == c && e[-X + 1][Final] == 0 &&
-                   (!HasPrevious || (s[-P] == c && s[-P - X + 1] == c && previous[j][Final] == 0)))
+            run ? FlatAhead<HasPrevious>(s, c, current, previous, j)
                           : (s[-1] == c && s[-X - 1] == c && s[-X + 1] == c && e[-1][Final] == 0 && e[-X][Final] == 0 &&
                    e[-X - 1][Final] == 0 && e[-X + 1][Final] == 0 &&
                    (!HasPrevious || (s[-P] == c && s[-P - 1] == c && s[-P - X] == c && s[-P - X - 1] == c &&
@@ -295,6 +294,19 @@ private:
     out[Final] = uint32_t(std::min<uint64_t>(uint64_t(std::abs(residual)), ErrorCap));
   }
 
+  /** Voxel j (sample s) is flat on c, given that the voxel before it was flat on c with a zero residual: only
+   * the neighbours ahead of that one's neighbourhood are new (north-east, and in the slice before the voxel
+   * itself and its north-east). */
+  template <bool HasPrevious>
+  bool
+  FlatAhead(const int32_t * s, int32_t c, const Errors * current, const Errors * previous, std::size_t j) const
+  {
+    const int64_t        X = m_X;
+    const std::ptrdiff_t P = std::ptrdiff_t(m_Plane);
+    return s[-X + 1] == c && current[j - X + 1][Final] == 0 &&
+           (!HasPrevious || (s[-P] == c && s[-P - X + 1] == c && previous[j][Final] == 0));
+  }
+
   /** Voxels x, x + 1, ... of row y (x > 0, y > 0) while each is flat on the value of the voxel before it, with a
    * zero residual and no bias correction: Voxel<true>'s decisions for each, with the coder, the zero flag's
    * model and the bias kept in registers (a model's and the coder's state otherwise went to memory and back
@@ -303,10 +315,9 @@ private:
   int64_t
   Run(int64_t x, int64_t y, std::size_t sliceStart, Errors * current, const Errors * previous)
   {
-    const int64_t        X = m_X;
-    const std::ptrdiff_t P = std::ptrdiff_t(m_Plane);
-    const int32_t        c = m_Samples[sliceStart + std::size_t(y * X + x - 1)];
-    const int64_t        value = int64_t(c) - m_Minimum;
+    const int64_t X = m_X;
+    const int32_t c = m_Samples[sliceStart + std::size_t(y * X + x - 1)];
+    const int64_t value = int64_t(c) - m_Minimum;
     // Voxel<true>'s end class for the prediction `value` (activity 0).
     const uint64_t below = uint64_t(value), above = uint64_t(m_Range - value);
     const int      end = std::min(below, above) == 0 ? (below <= above ? 1 : 4) : 0;
@@ -320,8 +331,7 @@ private:
       const std::size_t j = std::size_t(y * X + x);
       const std::size_t i = sliceStart + j;
       const int32_t *   s = m_Samples + i;
-      if (!(s[-X + 1] == c && current[j - X + 1][Final] == 0 &&
-            (!HasPrevious || (s[-P] == c && s[-P - X + 1] == c && previous[j][Final] == 0))))
+      if (!FlatAhead<HasPrevious>(s, c, current, previous, j))
         break;
       if (biasCount > 0)
       {
