@@ -193,14 +193,19 @@ struct EncoderResult
   double maximumError{ -1.0 };
   /** Point-count steps of rate control after the first run of the method. */
   unsigned adjustments{ 0 };
-  /** Seconds of each stage, and of the whole call. */
+  /** Seconds of each stage, and of the whole call. The stages of the points and the waiting for the residual
+   * layer follow one another on the calling thread (the critical path); the layer's own work runs beside
+   * them on a thread of its own, so `residualLayer` may overlap the points' stages. */
   struct Timings
   {
     double smoothing{ 0.0 };
     double refinement{ 0.0 };
     double decimation{ 0.0 };
     double leastSquares{ 0.0 };
+    /** The residual layer's work, on its thread and on the calling thread. */
     double residualLayer{ 0.0 };
+    /** The calling thread's part of it: waiting for the layer's thread, then choosing the file. */
+    double residualLayerOnPath{ 0.0 };
     double total{ 0.0 };
   } timings;
 };

@@ -76,6 +76,11 @@ constexpr double AbandonAfterRefinement = 2.5;
  * the points leave to a residual layer (+0.3 dB at most). */
 constexpr double AbandonNearTarget = 0.9;
 constexpr double AbandonAfterFirstRun = 1.2;
+/** ... and after each correction of the first fit whose size is within AbandonNearTarget of the target,
+ * where the rest of the fit and the step choice lowered the error by at most 1.50 times (ct-avm at 0.25
+ * bpv; 1.36 at 0.99 of the target, ct-avm at 0.125; docs/profile.md). A correction refines or decimates
+ * without the schedule, so its state is further from the final one than the first run's. */
+constexpr double AbandonDuringFit = 1.6;
 /** ... and after the step trials, where the best step's error predicted at the target size is within
  * 4.3% of the final one on every dev run that went on (the second fit and the points' own residual
  * layer gained at most that: ct-avm at 0.125 bpv, 0.4446 -> 0.4265 of the competitor's error; they lost

@@ -242,6 +242,19 @@ TEST_F(CommandLine, CompressDecompressInfo)
   const Result      c = RunDcv("compress " + phantom + " " + packed + " --bpv 0.0625");
   ASSERT_EQ(c.status, 0) << c.output;
   ExpectTheFileFillsTheBudget(packed, 0.0625, 40 * 40 * 40, c.output);
+  // The stages one after another: their seconds add up to the whole run's.
+  {
+    const double      seconds = std::stod(c.output.substr(c.output.find("\nseconds: ") + 10));
+    const auto        from = c.output.find("seconds by stage: ");
+    const std::string line = c.output.substr(from, c.output.find('\n', from) - from);
+    const std::regex  stage("([a-z ]+) ([0-9.e+-]+) \\(([0-9.]+)%\\)");
+    double            sum = 0.0;
+    int               stages = 0;
+    for (auto m = std::sregex_iterator(line.begin(), line.end(), stage); m != std::sregex_iterator(); ++m, ++stages)
+      sum += std::stod((*m)[2]);
+    EXPECT_EQ(stages, 7) << line;
+    EXPECT_NEAR(sum, seconds, 1e-3 + 1e-4 * seconds) << line;
+  }
 
   const Result info = RunDcv("info " + packed);
   ASSERT_EQ(info.status, 0) << info.output;

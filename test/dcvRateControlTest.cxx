@@ -19,6 +19,8 @@
 #include "dcvPhantom.h"
 #include "dcvRateControl.h"
 
+#include <algorithm>
+#include <random>
 #include <gtest/gtest.h>
 
 #include <cmath>
@@ -127,6 +129,72 @@ TEST(RateControl, PointsAbandonedAfterTheStepTrialsWhenTheCompetitorIsAhead)
     EXPECT_FALSE(r.abandoned);
     EXPECT_EQ(r.adjustments, corrections);
     EXPECT_EQ(e.engine->GetSquaredError(), final);
+  }
+}
+
+/** A smooth field with noise: the first count's guess of the bits a point is off, so the first fit takes
+ * several corrections, as on norm-256. */
+struct TexturedEngine
+{
+  explicit TexturedEngine(const GridSize & grid)
+    : image(grid.NumberOfVoxels())
+  {
+    std::mt19937                     random(7);
+    std::normal_distribution<double> noise(0.0, 2.0);
+    for (int32_t z = 0; z < grid.z; ++z)
+      for (int32_t y = 0; y < grid.y; ++y)
+        for (int32_t x = 0; x < grid.x; ++x)
+        {
+          const double v = 128.0 + 60.0 * std::sin(0.3 * x) * std::cos(0.25 * y) + 40.0 * std::sin(0.2 * z + 0.1 * x);
+          image[grid.Offset(x, y, z)] = float(std::clamp(std::round(v + noise(random)), 0.0, 255.0));
+        }
+    RefinementParameters p = ParametersForMode(Mode::Best);
+    p.peak = 255.0;
+    p.quantizationStep = DefaultQuantizationStep(255.0, true);
+    p.valueMin = 0.0;
+    p.valueMax = 255.0;
+    engine = std::make_unique<RefinementEngine>(image.data(), grid, p);
+  }
+  std::vector<float>                image;
+  std::unique_ptr<RefinementEngine> engine;
+};
+
+TEST(RateControl, PointsAbandonedInsideTheFitWhenTheCompetitorIsFarAhead)
+{
+  const GridSize   grid{ 32, 32, 32 };
+  constexpr size_t budget = 8000;
+  // The corrections of the first fit alone (one step: no step trials, and no check inside the fit).
+  unsigned firstFit = 0;
+  {
+    TexturedEngine e(grid);
+    firstFit = ApproximateToBudget(*e.engine, budget, 0.0, { 1.0 }).adjustments;
+    ASSERT_GE(firstFit, 2u) << "the test needs a first fit of several corrections";
+  }
+  double final = 0.0;
+  {
+    TexturedEngine     e(grid);
+    const BudgetResult r = ApproximateToBudget(*e.engine, budget, 0.0, RateControl::StepMultiples());
+    ASSERT_FALSE(r.abandoned);
+    final = e.engine->GetSquaredError();
+  }
+  // A competitor far ahead: a correction near the target, its error carried to it and divided by
+  // AbandonDuringFit, stands above it, and the fit stops there.
+  {
+    TexturedEngine     e(grid);
+    const BudgetResult r =
+      ApproximateToBudget(*e.engine, budget, 0.0, RateControl::StepMultiples(), {}, [&] { return 0.4 * final; });
+    EXPECT_TRUE(r.abandoned);
+    EXPECT_GE(r.adjustments, 1u) << "abandoned before the fit";
+    EXPECT_LT(r.adjustments, firstFit) << "not abandoned inside the fit";
+  }
+  // A competitor nearer the points: the fit's wider margin lets them on to the step trials, whose check
+  // abandons them after the whole first fit.
+  {
+    TexturedEngine     e(grid);
+    const BudgetResult r =
+      ApproximateToBudget(*e.engine, budget, 0.0, RateControl::StepMultiples(), {}, [&] { return 0.6 * final; });
+    EXPECT_TRUE(r.abandoned);
+    EXPECT_EQ(r.adjustments, firstFit);
   }
 }
 

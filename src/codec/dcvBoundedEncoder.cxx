@@ -198,6 +198,7 @@ EncodeBounded(const EncoderInput & input, const EncoderOptions & options)
   r.psnr = PSNR(squaredError, voxels, r.peak);
   r.maximumError = lattice.bound;
   r.timings.residualLayer = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+  r.timings.residualLayerOnPath = r.timings.residualLayer;
   r.timings.total = r.timings.residualLayer;
   progress(1.0);
   return r;

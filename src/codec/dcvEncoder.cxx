@@ -651,7 +651,12 @@ Run(const EncoderInput & input, const EncoderOptions & o, bool coded, std::vecto
   }
   auto cornersDone = [&]() -> const CornersCandidate & {
     if (cornersLater.valid())
+    {
+      const auto waitFrom = std::chrono::steady_clock::now();
       corners = cornersLater.get();
+      r.timings.residualLayerOnPath +=
+        std::chrono::duration<double>(std::chrono::steady_clock::now() - waitFrom).count();
+    }
     return corners;
   };
   if (o.bitsPerVoxel > 0.0)
@@ -726,7 +731,9 @@ Run(const EncoderInput & input, const EncoderOptions & o, bool coded, std::vecto
     cornersDone();
     const auto start = std::chrono::steady_clock::now();
     ChooseLayers(input, std::size_t(fileBytes), pointsAbandoned, std::move(corners), r, payload);
-    r.timings.residualLayer += std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+    const double choosing = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+    r.timings.residualLayer += choosing;
+    r.timings.residualLayerOnPath += choosing;
   }
   r.header.quantizationStep = r.quantizationStep > 0.0 ? r.quantizationStep : 1.0;
   r.header.numberOfPoints = uint32_t(r.approximation.points.size());

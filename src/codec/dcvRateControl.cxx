@@ -264,6 +264,11 @@ ApproximateToBudget(RefinementEngine & engine, std::size_t payloadBytes, double 
     encode();
     fitted.emplace_back(double(engine.GetNumberOfPoints()), double(result.payload.size()));
     shown.Done(stage, workLeft(fitted, stepsToCome));
+    // The competitor is in hand since the first run; before the step trials only (stepsToCome).
+    const double size = double(result.payload.size());
+    if (stepsToCome && size >= AbandonNearTarget * TargetFill * budget &&
+        carried(engine.GetSquaredError(), size) / AbandonDuringFit > competitorError)
+      throw Abandoned{};
   };
   auto fit = [&] {
     for (unsigned i = 0; i < MaximumCorrections; ++i)
@@ -299,7 +304,14 @@ ApproximateToBudget(RefinementEngine & engine, std::size_t payloadBytes, double 
       resize(count - std::max<std::size_t>(1, std::size_t(std::ceil(excess * double(count)))));
     }
   };
-  fit();
+  try
+  {
+    fit();
+  }
+  catch (const Abandoned &)
+  {
+    return abandon();
+  }
 
   if (stepMultiples.size() > 1)
   {

@@ -19,7 +19,10 @@
 #include "dcvCommand.h"
 #include "itkDCVEncoder.h"
 
+#include <algorithm>
+#include <iomanip>
 #include <iostream>
+#include <sstream>
 
 namespace dcv::tools
 {
@@ -32,6 +35,26 @@ struct CompressOptions
   MethodOptions method;
   TargetOptions targets;
 };
+
+// The stages one after another on the encoder's thread, so that they add up to `seconds`: the residual
+// layer's share is the time the points' stages waited for its thread and the choice of the file; its
+// thread's own time, beside the points, is given in brackets.
+void
+PrintSecondsByStage(const EncoderResult::Timings & t, double seconds)
+{
+  const double other =
+    std::max(0.0, t.total - t.smoothing - t.refinement - t.decimation - t.leastSquares - t.residualLayerOnPath);
+  const double io = std::max(0.0, seconds - t.total);
+  auto         stage = [seconds](double s) {
+    std::ostringstream out;
+    out << s << " (" << std::fixed << std::setprecision(1) << 100.0 * s / std::max(seconds, 1e-9) << "%)";
+    return out.str();
+  };
+  std::cout << "seconds by stage: reading and writing " << stage(io) << ", smoothing " << stage(t.smoothing)
+            << ", refinement " << stage(t.refinement) << ", decimation " << stage(t.decimation) << ", least squares "
+            << stage(t.leastSquares) << ", residual layer " << stage(t.residualLayerOnPath) << " [" << t.residualLayer
+            << " in all, beside the points], other " << stage(other) << " (rate control's coding, the PSNR)\n";
+}
 
 void
 Compress(const CompressOptions & c)
@@ -80,13 +103,9 @@ Compress(const CompressOptions & c)
     const std::string dicomHeader = FormatDicomHeaderBytes(r.header, r.bytes.size());
     if (!dicomHeader.empty())
       std::cout << "DICOM header: " << dicomHeader << "\n";
-    std::cout << "seconds: " << SecondsSince(start) << "\n";
-    const auto & t = r.timings;
-    std::cout << "seconds by stage: smoothing " << t.smoothing << ", refinement " << t.refinement << ", decimation "
-              << t.decimation << ", least squares " << t.leastSquares << ", residual layer " << t.residualLayer
-              << ", other "
-              << std::max(0.0, t.total - t.smoothing - t.refinement - t.decimation - t.leastSquares - t.residualLayer)
-              << " (rate control's coding, the PSNR)\n";
+    const double seconds = SecondsSince(start);
+    std::cout << "seconds: " << seconds << "\n";
+    PrintSecondsByStage(r.timings, seconds);
   }
 }
 
