@@ -64,6 +64,18 @@ TEST(RateControl, FittedCountFromOneStateIsTheMeasuredFallOfTheLawOfASubset)
   EXPECT_THROW(FittedCount({ { 0.0, 1000.0 } }, 1e6, 1000.0), std::invalid_argument);
 }
 
+/** Mode best for 8-bit volumes, as the encoder sets it. */
+RefinementParameters
+EightBitBest()
+{
+  RefinementParameters p = ParametersForMode(Mode::Best);
+  p.peak = 255.0;
+  p.quantizationStep = DefaultQuantizationStep(255.0, true);
+  p.valueMin = 0.0;
+  p.valueMax = 255.0;
+  return p;
+}
+
 /** The engine of the rate-control tests: mode best on a Shepp-Logan phantom, 8-bit steps. */
 struct PhantomEngine
 {
@@ -71,12 +83,7 @@ struct PhantomEngine
     : bytes(SheppLoganPhantom(grid))
     , image(bytes.begin(), bytes.end())
   {
-    RefinementParameters p = ParametersForMode(Mode::Best);
-    p.peak = 255.0;
-    p.quantizationStep = DefaultQuantizationStep(255.0, true);
-    p.valueMin = 0.0;
-    p.valueMax = 255.0;
-    engine = std::make_unique<RefinementEngine>(image.data(), grid, p);
+    engine = std::make_unique<RefinementEngine>(image.data(), grid, EightBitBest());
   }
   std::vector<uint8_t>              bytes;
   std::vector<float>                image;
@@ -148,12 +155,7 @@ struct TexturedEngine
           const double v = 128.0 + 60.0 * std::sin(0.3 * x) * std::cos(0.25 * y) + 40.0 * std::sin(0.2 * z + 0.1 * x);
           image[grid.Offset(x, y, z)] = float(std::clamp(std::round(v + noise(random)), 0.0, 255.0));
         }
-    RefinementParameters p = ParametersForMode(Mode::Best);
-    p.peak = 255.0;
-    p.quantizationStep = DefaultQuantizationStep(255.0, true);
-    p.valueMin = 0.0;
-    p.valueMax = 255.0;
-    engine = std::make_unique<RefinementEngine>(image.data(), grid, p);
+    engine = std::make_unique<RefinementEngine>(image.data(), grid, EightBitBest());
   }
   std::vector<float>                image;
   std::unique_ptr<RefinementEngine> engine;
